@@ -1,0 +1,1 @@
+"""slip_gripper_driver."""

@@ -1,0 +1,1 @@
+"""Shared rclpy helpers of the cell: QoS profiles, parameters, diagnostics, node entry points."""

@@ -1,0 +1,112 @@
+"""Entry points for our nodes: clean start, autostart of lifecycle nodes, clean stop.
+
+rclpy's own signal handler shuts the context down on SIGINT, after which a node can no longer
+publish its last state. We install handlers that raise in the main thread instead, so the
+``finally`` block still runs with a valid context: lifecycle nodes get their shutdown
+transition (drivers command the safe state there), then the executor is shut down and joined.
+"""
+from __future__ import annotations
+
+import signal
+import sys
+from typing import Callable, Sequence
+
+import rclpy
+from lifecycle_msgs.msg import State
+from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor, \
+    SingleThreadedExecutor
+from rclpy.lifecycle import LifecycleNode, TransitionCallbackReturn
+from rclpy.node import Node
+from rclpy.signals import SignalHandlerOptions
+
+
+class _Stop(Exception):
+    """Raised by our SIGTERM handler to leave spin()."""
+
+
+def _raise_stop(signum: int, frame: object) -> None:  # noqa: ARG001
+    raise _Stop(signal.Signals(signum).name)
+
+
+def autostart(node: LifecycleNode) -> bool:
+    """Configure then activate ``node`` if its ``autostart`` parameter is true.
+
+    Returns:
+        True when the node ended up active (or autostart is off), False when a transition failed
+        (the node stays up, unconfigured or inactive, and says why in its log).
+    """
+    if not node.has_parameter('autostart') or not node.get_parameter('autostart').value:
+        return True
+    if node.trigger_configure() != TransitionCallbackReturn.SUCCESS:
+        node.get_logger().error('autostart: configure failed; node left unconfigured')
+        return False
+    if node.trigger_activate() != TransitionCallbackReturn.SUCCESS:
+        node.get_logger().error('autostart: activate failed; node left inactive')
+        return False
+    return True
+
+
+def _lifecycle_state(node: LifecycleNode) -> int:
+    return node._state_machine.current_state[0]  # noqa: SLF001 - no public getter in rclpy 7.1
+
+
+def shutdown_lifecycle(node: LifecycleNode) -> None:
+    """Run the shutdown transition (deactivate first when active) so devices reach a safe state."""
+    state = _lifecycle_state(node)
+    if state == State.PRIMARY_STATE_ACTIVE:
+        node.trigger_deactivate()
+        state = _lifecycle_state(node)
+    if state in (State.PRIMARY_STATE_INACTIVE, State.PRIMARY_STATE_UNCONFIGURED):
+        node.trigger_shutdown()
+
+
+def run_nodes(factories: Sequence[Callable[[], Node]], args: list[str] | None = None,
+              multithreaded: bool = False) -> int:
+    """Create nodes, autostart lifecycle nodes, spin until SIGINT/SIGTERM, stop cleanly.
+
+    Returns:
+        Process exit code: 0 on a requested stop, 1 when a node failed to construct or start.
+    """
+    rclpy.init(args=args if args is not None else sys.argv,
+               signal_handler_options=SignalHandlerOptions.NO)
+    signal.signal(signal.SIGTERM, _raise_stop)
+    executor = MultiThreadedExecutor() if multithreaded else SingleThreadedExecutor()
+    nodes: list[Node] = []
+    code = 0
+    try:
+        for factory in factories:
+            node = factory()
+            nodes.append(node)
+            executor.add_node(node)
+        for node in nodes:
+            if isinstance(node, LifecycleNode) and not autostart(node):
+                code = 1
+        executor.spin()
+    except (KeyboardInterrupt, _Stop, ExternalShutdownException):
+        pass
+    except Exception as exc:  # noqa: BLE001 - report, stop devices safely, exit non-zero
+        if nodes:
+            nodes[0].get_logger().fatal(f'unhandled error: {exc!r}')
+        else:
+            print(f'error: {exc}', file=sys.stderr)
+        code = 1
+    finally:
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        signal.signal(signal.SIGTERM, signal.SIG_IGN)
+        for node in reversed(nodes):
+            if isinstance(node, LifecycleNode):
+                try:
+                    shutdown_lifecycle(node)
+                except Exception as exc:  # noqa: BLE001 - keep stopping the others
+                    node.get_logger().error(f'shutdown transition failed: {exc!r}')
+        executor.shutdown()
+        for node in nodes:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return code
+
+
+def run_node(factory: Callable[[], Node], args: list[str] | None = None,
+             multithreaded: bool = False) -> int:
+    """`run_nodes` for a single node."""
+    return run_nodes([factory], args, multithreaded)

@@ -1,0 +1,93 @@
+"""Test helpers shared by every package's tests (real rclpy, real DDS, bounded waits).
+
+Never use ``rclpy.spin_until_future_complete`` in loops (rclpy 7.1.6 leaks executor tasks);
+`spin_until` spins an executor until a predicate holds or a timeout passes.
+"""
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Callable, Sequence
+
+from rclpy.executors import Executor
+
+
+def spin_until(executor: Executor, predicate: Callable[[], bool], timeout_s: float,
+               step_s: float = 0.01) -> bool:
+    """Spin ``executor`` until ``predicate()`` is true; False after ``timeout_s`` (wall clock)."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if predicate():
+            return True
+        executor.spin_once(timeout_sec=step_s)
+    return predicate()
+
+
+def call_service(executor: Executor, client, request, timeout_s: float = 10.0):  # noqa: ANN001
+    """Call a service with ``call_async`` and spin until the response; None on timeout."""
+    if not spin_until(executor, client.service_is_ready, timeout_s):
+        return None
+    future = client.call_async(request)
+    spin_until(executor, future.done, timeout_s)
+    if not future.done():
+        client.remove_pending_request(future)
+        return None
+    return future.result()
+
+
+def workspace_root() -> Path:
+    """Repository root (the directory holding ``install/``), from the environment or this file."""
+    env = os.environ.get('SLIP_WORKSPACE')
+    if env:
+        return Path(env)
+    for parent in Path(__file__).resolve().parents:
+        if (parent / 'install').is_dir() and (parent / 'src').is_dir():
+            return parent
+    raise RuntimeError('cannot locate the workspace root; set SLIP_WORKSPACE')
+
+
+class NodeProcess:
+    """A node (or any ROS program) in its own process, stopped with SIGINT then SIGKILL.
+
+    Output goes to a log file so a failing test can show it (``output()``).
+    """
+
+    def __init__(self, argv: Sequence[str], log_path: Path, env: dict[str, str] | None = None,
+                 cwd: Path | None = None) -> None:
+        self.argv = list(argv)
+        self.log_path = log_path
+        self._log = open(log_path, 'wb')  # noqa: SIM115 - closed in stop()
+        self.proc = subprocess.Popen(self.argv, stdout=self._log, stderr=subprocess.STDOUT,
+                                     env=env if env is not None else os.environ.copy(),
+                                     cwd=cwd, start_new_session=True)
+
+    @classmethod
+    def python_module(cls, module: str, args: Sequence[str], log_path: Path,
+                      env: dict[str, str] | None = None) -> NodeProcess:
+        """Run ``python -m module args`` with this interpreter."""
+        return cls([sys.executable, '-m', module, *args], log_path, env)
+
+    def running(self) -> bool:
+        """True while the process has not exited."""
+        return self.proc.poll() is None
+
+    def stop(self, timeout_s: float = 8.0) -> int:
+        """SIGINT, wait up to ``timeout_s``, then SIGKILL the process group; returns the exit code."""
+        if self.proc.poll() is None:
+            self.proc.send_signal(signal.SIGINT)
+            try:
+                self.proc.wait(timeout=timeout_s)
+            except subprocess.TimeoutExpired:
+                os.killpg(self.proc.pid, signal.SIGKILL)
+                self.proc.wait(timeout=5.0)
+        self._log.close()
+        return self.proc.returncode
+
+    def output(self) -> str:
+        """Everything the process printed so far."""
+        self._log.flush()
+        return self.log_path.read_text(errors='replace')
