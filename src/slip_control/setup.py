@@ -24,7 +24,9 @@ setup(
     extras_require={'test': ['pytest']},
     entry_points={
         'console_scripts': [
-            # '<executable> = slip_control.<module>:main',
+            'slip_bag = slip_control.bag_cli:main',
+            'bag_recorder = slip_control.bag_nodes:recorder_main',
+            'bag_replay = slip_control.bag_nodes:replay_main',
         ],
     },
 )

@@ -1,0 +1,271 @@
+"""Record topics to a bag and replay bags, with rclpy (rosbag2 is not installable from PyPI).
+
+* `TopicRecorder` attaches to any node (the experiment runner records in-process with it).
+* ``bag_recorder`` node: records the chosen topics (or every topic) until stopped.
+* ``bag_replay`` node: publishes a bag's messages with the original timing scaled by ``rate``,
+  publishes ``/clock`` from bag time, filters topics, and never publishes command topics unless
+  ``include_commands`` is set.
+
+Bag stamps are receive times on the node clock (sim time under ``use_sim_time``), as rosbag2
+does, so recordings of a simulated run are deterministic in time.
+"""
+from __future__ import annotations
+
+import fnmatch
+import importlib
+import sys
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, QoSProfile
+from rosgraph_msgs.msg import Clock
+
+from slip_control.bagio import (COMMAND_TOPICS, BagError, BagWriter, bag_info, iter_raw,
+                                slip_typestore)
+from slip_gripper_driver.common.node_main import run_node
+from slip_gripper_driver.common.params import ParameterBinding
+from slip_gripper_driver.common.qos import CLOCK, LATCHED, SENSOR_PUB
+
+
+def import_message_type(msgtype: str) -> type:
+    """``'pkg/msg/Name'`` → the rclpy message class."""
+    pkg, kind, name = msgtype.split('/')
+    return getattr(importlib.import_module(f'{pkg}.{kind}'), name)
+
+
+def is_command_topic(topic: str) -> bool:
+    """True for topics that command hardware (namespaces allowed)."""
+    bare = topic.strip('/')
+    return any(bare == c or bare.endswith('/' + c) for c in COMMAND_TOPICS)
+
+
+def _matches(topic: str, patterns: tuple[str, ...]) -> bool:
+    bare = topic.lstrip('/')
+    return any(fnmatch.fnmatchcase(bare, p.lstrip('/')) for p in patterns if p)
+
+
+class TopicRecorder:
+    """Subscribes (raw CDR) to matching topics of a node's graph and writes them to a bag.
+
+    Args:
+        node: Node used for discovery and subscriptions.
+        path: New bag directory (refused if it exists).
+        topics: Glob patterns of topics to record (``('*',)`` = all). ``/diagnostics`` is always
+            recorded.
+        exclude: Glob patterns never recorded.
+        discovery_period_s: How often new topics are looked for [s, node clock].
+    """
+
+    def __init__(self, node: Node, path: Path | str, topics: tuple[str, ...] = ('*',),
+                 exclude: tuple[str, ...] = (), discovery_period_s: float = 0.25) -> None:
+        self._node = node
+        self._writer = BagWriter(path, slip_typestore())
+        self.path = self._writer.path
+        self._topics = tuple(topics) + ('diagnostics',)
+        self._exclude = tuple(exclude)
+        self._subs: dict[str, Any] = {}
+        self._lock = threading.Lock()
+        self._closed = False
+        self._discover()
+        self._timer = node.create_timer(discovery_period_s, self._discover)
+
+    @property
+    def message_count(self) -> int:
+        """Messages written so far."""
+        return self._writer.message_count
+
+    @property
+    def topics(self) -> list[str]:
+        """Topics subscribed so far."""
+        return sorted(self._subs)
+
+    def _discover(self) -> None:
+        for topic, types in self._node.get_topic_names_and_types():
+            if topic in self._subs or not types or not _matches(topic, self._topics):
+                continue
+            if _matches(topic, self._exclude):
+                continue
+            msgtype = types[0]
+            if msgtype not in self._writer.typestore.types:
+                self._node.get_logger().warn(f'recorder: skipping {topic}: unknown type {msgtype}')
+                self._subs[topic] = None
+                continue
+            latched = any(info.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL
+                          for info in self._node.get_publishers_info_by_topic(topic))
+            qos = QoSProfile(**{**_qos_kwargs(LATCHED if latched else SENSOR_PUB),
+                                'depth': 1 if latched else 100})
+            self._writer.add_topic(topic, msgtype, latched=latched)
+            self._subs[topic] = self._node.create_subscription(
+                import_message_type(msgtype), topic,
+                lambda data, t=topic: self._write(t, data), qos, raw=True)
+
+    def _write(self, topic: str, data: bytes) -> None:
+        with self._lock:
+            if not self._closed:
+                self._writer.write(topic, self._node.get_clock().now().nanoseconds, data)
+
+    def stop(self) -> Path:
+        """Unsubscribe and close the bag; returns its path."""
+        with self._lock:
+            if self._closed:
+                return self.path
+            self._closed = True
+        self._node.destroy_timer(self._timer)
+        for sub in self._subs.values():
+            if sub is not None:
+                self._node.destroy_subscription(sub)
+        self._writer.close()
+        return self.path
+
+
+def _qos_kwargs(profile: QoSProfile) -> dict[str, Any]:
+    return {'history': profile.history, 'depth': profile.depth,
+            'reliability': profile.reliability, 'durability': profile.durability}
+
+
+@dataclass(frozen=True)
+class RecorderParams:
+    """Parameters of the ``bag_recorder`` node."""
+
+    output: str = field(default='', metadata={
+        'required': True, 'read_only': True, 'description': 'new bag directory'})
+    topics: tuple[str, ...] = field(default=('*',), metadata={
+        'read_only': True, 'description': 'glob patterns of topics to record'})
+    exclude: tuple[str, ...] = field(default=('rosout', 'parameter_events'), metadata={
+        'read_only': True, 'description': 'glob patterns never recorded'})
+    discovery_period: float = field(default=0.25, metadata={
+        'unit': 's', 'range': (0.01, 10.0), 'read_only': True,
+        'description': 'period of the topic discovery'})
+
+
+class BagRecorderNode(Node):
+    """Records topics to an MCAP bag until the process is stopped."""
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__('bag_recorder', **kwargs)
+        cfg = ParameterBinding(self, RecorderParams).load()
+        self.recorder = TopicRecorder(self, cfg.output, cfg.topics, cfg.exclude,
+                                      cfg.discovery_period)
+        self.get_logger().info(f'recording {list(cfg.topics)} to {self.recorder.path}')
+
+    def destroy_node(self) -> None:
+        """Close the bag before the node goes away."""
+        path = self.recorder.stop()
+        self.get_logger().info(f'bag closed: {path} ({self.recorder.message_count} messages)')
+        super().destroy_node()
+
+
+@dataclass(frozen=True)
+class ReplayParams:
+    """Parameters of the ``bag_replay`` node."""
+
+    bag: str = field(default='', metadata={
+        'required': True, 'read_only': True, 'description': 'bag directory to replay'})
+    rate: float = field(default=1.0, metadata={
+        'unit': '-', 'range': (0.0, 1000.0), 'read_only': True,
+        'description': 'speed factor; 0 = as fast as possible'})
+    topics: tuple[str, ...] = field(default=('*',), metadata={
+        'read_only': True, 'description': 'glob patterns of topics to replay'})
+    include_commands: bool = field(default=False, metadata={
+        'read_only': True, 'description': 'also replay command topics (can move hardware)'})
+    publish_clock: bool = field(default=True, metadata={
+        'read_only': True, 'description': 'publish /clock from bag time'})
+    start_delay: float = field(default=2.0, metadata={
+        'unit': 's', 'range': (0.0, 120.0), 'read_only': True,
+        'description': 'longest wall time to wait, before playing, until every replayed topic '
+                       'has a subscriber (discovery of a new publisher can take seconds)'})
+    exit_when_done: bool = field(default=True, metadata={
+        'read_only': True, 'description': 'stop the process at the end of the bag'})
+
+
+class BagReplayNode(Node):
+    """Publishes the messages of a bag with their original timing (scaled by ``rate``)."""
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__('bag_replay', **kwargs)
+        self.cfg = ParameterBinding(self, ReplayParams).load()
+        if not Path(self.cfg.bag).exists():
+            raise BagError(f'bag {self.cfg.bag} does not exist')
+        # Create every publisher before the start delay so discovery happens during the delay.
+        self._pubs: dict[str, Any] = {}
+        for info in bag_info(self.cfg.bag).topics:
+            if info.name != '/clock' and self._selected(info.name):
+                self._publisher(info.name, info.msgtype)
+        self._clock_pub = (self.create_publisher(Clock, '/clock', CLOCK)
+                           if self.cfg.publish_clock else None)
+        self.published = 0
+        self.done = threading.Event()
+        self.error: str | None = None
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name='bag_replay', daemon=True)
+        self._thread.start()
+
+    def _selected(self, topic: str) -> bool:
+        if not _matches(topic, self.cfg.topics):
+            return False
+        return self.cfg.include_commands or not is_command_topic(topic)
+
+    def _publisher(self, topic: str, msgtype: str) -> Any:
+        pub = self._pubs.get(topic)
+        if pub is None:
+            pub = self.create_publisher(import_message_type(msgtype), topic, SENSOR_PUB)
+            self._pubs[topic] = pub
+        return pub
+
+    def _run(self) -> None:
+        try:
+            deadline = time.monotonic() + self.cfg.start_delay
+            while time.monotonic() < deadline and not all(
+                    pub.get_subscription_count() > 0 for pub in self._pubs.values()):
+                if self._stop.wait(0.02):
+                    return
+            wall0 = time.monotonic()
+            bag0: int | None = None
+            for topic, msgtype, stamp, data in iter_raw(self.cfg.bag):
+                if self._stop.is_set():
+                    return
+                if topic == '/clock' or not self._selected(topic):
+                    continue
+                bag0 = stamp if bag0 is None else bag0
+                if self.cfg.rate > 0.0:
+                    delay = wall0 + (stamp - bag0) * 1e-9 / self.cfg.rate - time.monotonic()
+                    if delay > 0.0 and self._stop.wait(delay):
+                        return
+                if self._clock_pub is not None:
+                    clock = Clock()
+                    clock.clock.sec, clock.clock.nanosec = divmod(stamp, 1_000_000_000)
+                    self._clock_pub.publish(clock)
+                self._publisher(topic, msgtype).publish(data)
+                self.published += 1
+        except BagError as exc:
+            self.error = str(exc)
+            self.get_logger().error(self.error)
+        finally:
+            self.done.set()
+            if self.cfg.exit_when_done and not self._stop.is_set():
+                self.get_logger().info(f'replay finished: {self.published} messages')
+                self.context.try_shutdown()
+
+    def destroy_node(self) -> None:
+        """Stop the replay thread, then the node."""
+        self._stop.set()
+        self._thread.join(timeout=5.0)
+        super().destroy_node()
+
+
+def recorder_main(args: list[str] | None = None) -> int:
+    """Console script ``bag_recorder``."""
+    return run_node(BagRecorderNode, args)
+
+
+def replay_main(args: list[str] | None = None) -> int:
+    """Console script ``bag_replay``."""
+    return run_node(BagReplayNode, args)
+
+
+if __name__ == '__main__':
+    sys.exit(recorder_main())
