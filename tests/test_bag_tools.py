@@ -7,39 +7,15 @@ from pathlib import Path
 
 import pytest
 
+from support.sample_bags import status_message, write_sample_bag
+
 pytestmark = pytest.mark.ros
-
-
-def _status(k: int):  # noqa: ANN202
-    from slip_msgs.msg import GripperStatus
-    msg = GripperStatus(line_count=k, motor_angle=0.01 * k, opening=math.nan, link_ok=True)
-    msg.header.stamp.sec, msg.header.stamp.nanosec = 100, k * 1_000_000
-    return msg
-
-
-def _write_sample_bag(path: Path, n: int = 50) -> None:
-    from rclpy.serialization import serialize_message
-    from slip_control.bagio import BagWriter
-    from slip_msgs.msg import ContactProperties, GraspForceCommand
-    with BagWriter(path) as bag:
-        bag.add_topic('/gripper/status', 'slip_msgs/msg/GripperStatus')
-        bag.add_topic('/gripper/grasp_force_cmd', 'slip_msgs/msg/GraspForceCommand')
-        bag.add_topic('/contact/properties', 'slip_msgs/msg/ContactProperties', latched=True)
-        props = ContactProperties(source=ContactProperties.SOURCE_PRESET, preset_name='wood')
-        props.finger_1.mu_c = 0.46
-        bag.write('/contact/properties', 1_000_000, serialize_message(props))
-        for k in range(n):
-            t = 2_000_000 + k * 2_000_000  # 500 Hz
-            bag.write('/gripper/status', t, serialize_message(_status(k)))
-            if k % 10 == 0:
-                bag.write('/gripper/grasp_force_cmd', t, serialize_message(
-                    GraspForceCommand(force=5.0 + k, source=GraspForceCommand.SOURCE_TEST)))
 
 
 def test_write_read_info_and_csv(tmp_path: Path) -> None:
     from slip_control.bagio import BagError, BagWriter, bag_info, export_csv, read_messages
     bag = tmp_path / 'sample'
-    _write_sample_bag(bag)
+    write_sample_bag(bag)
     info = bag_info(bag)
     counts = {t.name: t.count for t in info.topics}
     assert counts == {'/gripper/status': 50, '/gripper/grasp_force_cmd': 5,
@@ -70,7 +46,7 @@ def test_missing_truncated_and_corrupt_bags_give_clear_errors(tmp_path: Path) ->
         bag_info(tmp_path / 'missing')
 
     bag = tmp_path / 'truncated'
-    _write_sample_bag(bag, n=400)
+    write_sample_bag(bag, n=400)
     data_file = next(bag.glob('*.mcap'))
     data_file.write_bytes(data_file.read_bytes()[: data_file.stat().st_size // 2])
     with pytest.raises(BagError):
@@ -108,7 +84,7 @@ def test_record_in_process_then_replay_in_another_process(ros_context, ros_env,
 
     def tick() -> None:
         nonlocal sent
-        status_pub.publish(_status(sent))
+        status_pub.publish(status_message(sent))
         cmd_pub.publish(GraspForceCommand(force=float(sent)))
         sent += 1
     assert spin_until(executor, lambda: len(recorder.topics) >= 3, 10.0)

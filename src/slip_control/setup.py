@@ -27,6 +27,7 @@ setup(
             'slip_bag = slip_control.bag_cli:main',
             'bag_recorder = slip_control.bag_nodes:recorder_main',
             'bag_replay = slip_control.bag_nodes:replay_main',
+            'run_graph = slip_control.run_graph:main',
         ],
     },
 )

@@ -246,9 +246,10 @@ class BagReplayNode(Node):
             self.get_logger().error(self.error)
         finally:
             self.done.set()
-            if self.cfg.exit_when_done and not self._stop.is_set():
+            if not self._stop.is_set():
                 self.get_logger().info(f'replay finished: {self.published} messages')
-                self.context.try_shutdown()
+                if self.cfg.exit_when_done:
+                    self.context.try_shutdown()
 
     def destroy_node(self) -> None:
         """Stop the replay thread, then the node."""

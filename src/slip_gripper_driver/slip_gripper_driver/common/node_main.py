@@ -81,7 +81,10 @@ def run_nodes(factories: Sequence[Callable[[], Node]], args: list[str] | None = 
         for node in nodes:
             if isinstance(node, LifecycleNode) and not autostart(node):
                 code = 1
-        executor.spin()
+        # spin_once with a timeout instead of spin(): a graph without timers would otherwise
+        # block inside rcl_wait forever and Python could never run our signal handlers.
+        while executor.context.ok():
+            executor.spin_once(timeout_sec=0.1)
     except (KeyboardInterrupt, _Stop, ExternalShutdownException):
         pass
     except Exception as exc:  # noqa: BLE001 - report, stop devices safely, exit non-zero
