@@ -28,6 +28,7 @@ setup(
             'bag_recorder = slip_control.bag_nodes:recorder_main',
             'bag_replay = slip_control.bag_nodes:replay_main',
             'run_graph = slip_control.run_graph:main',
+            'slip_cli = slip_control.slip_cli:main',
         ],
     },
 )

@@ -9,34 +9,10 @@ import os
 import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
-from typing import Callable, Sequence
+from typing import Sequence
 
-from rclpy.executors import Executor
-
-
-def spin_until(executor: Executor, predicate: Callable[[], bool], timeout_s: float,
-               step_s: float = 0.01) -> bool:
-    """Spin ``executor`` until ``predicate()`` is true; False after ``timeout_s`` (wall clock)."""
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        if predicate():
-            return True
-        executor.spin_once(timeout_sec=step_s)
-    return predicate()
-
-
-def call_service(executor: Executor, client, request, timeout_s: float = 10.0):  # noqa: ANN001
-    """Call a service with ``call_async`` and spin until the response; None on timeout."""
-    if not spin_until(executor, client.service_is_ready, timeout_s):
-        return None
-    future = client.call_async(request)
-    spin_until(executor, future.done, timeout_s)
-    if not future.done():
-        client.remove_pending_request(future)
-        return None
-    return future.result()
+from slip_gripper_driver.common.calls import call_service, spin_until  # noqa: F401 (re-export)
 
 
 def workspace_root() -> Path:
