@@ -29,6 +29,7 @@ setup(
             'bag_replay = slip_control.bag_nodes:replay_main',
             'run_graph = slip_control.run_graph:main',
             'slip_cli = slip_control.slip_cli:main',
+            'slip_analyze = slip_control.analyze:main',
         ],
     },
 )
