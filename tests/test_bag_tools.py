@@ -13,7 +13,7 @@ pytestmark = pytest.mark.ros
 
 
 def test_write_read_info_and_csv(tmp_path: Path) -> None:
-    from slip_control.bagio import BagError, BagWriter, bag_info, export_csv, read_messages
+    from slip_gripper_driver.common.bag_io import BagError, BagWriter, bag_info, export_csv, read_messages
     bag = tmp_path / 'sample'
     write_sample_bag(bag)
     info = bag_info(bag)
@@ -41,7 +41,7 @@ def test_write_read_info_and_csv(tmp_path: Path) -> None:
 
 def test_missing_truncated_and_corrupt_bags_give_clear_errors(tmp_path: Path) -> None:
     from slip_control.bag_cli import main as slip_bag
-    from slip_control.bagio import BagError, bag_info, read_messages
+    from slip_gripper_driver.common.bag_io import BagError, bag_info, read_messages
     with pytest.raises(BagError, match='does not exist'):
         bag_info(tmp_path / 'missing')
 
@@ -65,8 +65,8 @@ def test_record_in_process_then_replay_in_another_process(ros_context, ros_env,
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.node import Node
     from rosgraph_msgs.msg import Clock
-    from slip_control.bag_nodes import TopicRecorder
-    from slip_control.bagio import bag_info
+    from slip_gripper_driver.common.recorder import TopicRecorder
+    from slip_gripper_driver.common.bag_io import bag_info
     from slip_gripper_driver.common.qos import COMMAND, LATCHED, SENSOR_PUB, SENSOR_SUB
     from slip_gripper_driver.testing import NodeProcess, spin_until
     from slip_msgs.msg import ContactProperties, GraspForceCommand, GripperStatus

@@ -17,7 +17,7 @@ def _params(path: Path, node: str, values: dict) -> str:
 
 
 def test_graph_of_installed_nodes_replays_into_a_recorder(ros_env, tmp_path: Path) -> None:
-    from slip_control.bagio import bag_info
+    from slip_gripper_driver.common.bag_io import bag_info
     from slip_control.run_graph import GraphRunner, load_graph
     source = tmp_path / 'source'
     write_sample_bag(source, n=1500)  # 3 s at 500 Hz

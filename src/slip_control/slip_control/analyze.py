@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from slip_control.bagio import BagError, read_messages, stamp_s
+from slip_gripper_driver.common.bag_io import BagError, read_messages, stamp_s
 from slip_gripper_driver.core.frames import FrameParams, planar_to_middle
 
 TOPICS = {

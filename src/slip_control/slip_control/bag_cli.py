@@ -12,7 +12,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from slip_control.bagio import BagError, bag_info, export_csv
+from slip_gripper_driver.common.bag_io import BagError, bag_info, export_csv
 
 
 def _ros_args(pairs: list[tuple[str, str]]) -> list[str]:

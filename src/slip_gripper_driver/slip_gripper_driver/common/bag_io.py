@@ -38,7 +38,7 @@ def _interface_dir(package: str) -> Path:
         from ament_index_python.packages import get_package_share_directory
         return Path(get_package_share_directory(package))
     except (ImportError, LookupError, ValueError):
-        source = Path(__file__).resolve().parents[2] / package
+        source = Path(__file__).resolve().parents[3] / package
         if (source / 'msg').is_dir():
             return source
         raise BagError(f'cannot find the {package} interface definitions '

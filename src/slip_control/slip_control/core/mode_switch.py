@@ -1,0 +1,225 @@
+# SPDX-License-Identifier: Apache-2.0
+"""Mode-request validation and atomic controller construction (control_and_estimation §4.1).
+
+CE-2: a request is validated completely before anything changes; then a complete new
+controller object (trajectory, integrators, gains snapshot, contact properties) is built and
+returned, so the node swaps it in with one assignment on the executor that runs the control
+step::
+
+    outcome = build_controller(request, properties, params, t=now, previous=self._controller)
+    if outcome.ok:
+        if outcome.preempted is not None: ...          # abort the running ExecuteSlip goal
+        if outcome.final_force is not None: ...        # OFF: publish once with timeout 0
+        self._controller = outcome.controller          # the one assignment
+
+Rules (SI arguments; CE-1, CE-4):
+
+* every numeric field must be finite (NaN and ±inf are rejected whatever the mode);
+* LINEAR: ``min_duration ≤ duration ≤ max_duration``, ``0 < distance ≤ max_linear_distance``;
+  a zero ``direction`` (xy) or ``latch_direction`` latches the direction from the first
+  motion;
+* ROTATIONAL: the same duration rule, ``0 < |angle| ≤ max_angle``;
+* contact properties: HOLD and ROTATIONAL need valid ``μ_c`` and ``r`` (both fingers
+  ``linear_valid`` and ``rotational_valid``), LINEAR and HINGE need valid ``μ_c`` (both fingers
+  ``linear_valid``). DEFAULT sets are never accepted. A PRESET set is accepted only with
+  ``allow_preset_properties`` (the message then says so, for a diagnostics WARN), and its
+  flags must still cover what the mode needs. ESTIMATED and GROUND_TRUTH sets are judged by
+  their flags.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from slip_control.core.contact import ContactProperties, ContactSource
+from slip_control.core.controllers import (ControlContact, HingeController, HoldController,
+                                           LinearController, OffController,
+                                           RotationalController, SlipController, SlipMode,
+                                           SlipResult)
+from slip_control.core.params import SlipControllerParams
+
+_MODE_NAMES = ', '.join(f'{m.value} {m.name}' for m in SlipMode)
+
+
+@dataclass(frozen=True, slots=True)
+class ModeRequest:
+    """A ``SetSlipMode`` / ``ExecuteSlip`` request in SI units.
+
+    Attributes:
+        mode: Requested mode (``SlipMode`` value; any int is accepted here and validated).
+        duration: Trajectory time ``T`` [s] (ROTATIONAL, LINEAR).
+        distance: Slip distance [m] (LINEAR).
+        angle: Signed slip angle about ``gripper_middle`` +z [rad] (ROTATIONAL).
+        direction: LINEAR slip direction in ``gripper_middle`` (xy used; zero = latch).
+        latch_direction: Take the direction (LINEAR) or sign (ROTATIONAL) from the first
+            motion.
+    """
+
+    mode: int
+    duration: float = 0.0
+    distance: float = 0.0
+    angle: float = 0.0
+    direction: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    latch_direction: bool = False
+
+
+@dataclass(frozen=True, slots=True)
+class SwitchOutcome:
+    """Result of `build_controller`.
+
+    Attributes:
+        ok: The request was accepted and ``controller`` is ready to swap in.
+        message: Why it was rejected, or what was accepted (mentions a preset in use).
+        controller: The new controller (``None`` when rejected).
+        final_force: OFF only: the previous controller's last force [N], to publish once with
+            ``timeout = 0`` (valid until replaced); ``None`` if there is nothing to hand over.
+        preempted: Result of a trajectory that the new request aborted ("preempted").
+        preset_in_use: The accepted properties are a preset (diagnostics WARN).
+    """
+
+    ok: bool
+    message: str
+    controller: SlipController | None = None
+    final_force: float | None = None
+    preempted: SlipResult | None = None
+    preset_in_use: bool = False
+
+
+def _finite(*values: float) -> bool:
+    return all(isinstance(v, (int, float)) and math.isfinite(v) for v in values)
+
+
+def check_contact(mode: SlipMode, props: ContactProperties | None,
+                  params: SlipControllerParams) -> tuple[bool, str]:
+    """Whether ``props`` are good enough for ``mode`` (§4.1, CE-4).
+
+    Args:
+        mode: Requested mode.
+        props: Latest contact properties (``None`` if none were received).
+        params: Controller parameters (``allow_preset_properties``).
+
+    Returns:
+        ``(ok, message)``.
+    """
+    if mode == SlipMode.OFF:
+        return True, ''
+    needs_r = mode in (SlipMode.HOLD, SlipMode.ROTATIONAL)
+    need = 'valid mu_c and r' if needs_r else 'valid mu_c'
+    if props is None:
+        return False, f'{mode.name} needs {need}: no contact properties received'
+    if props.source == ContactSource.DEFAULT:
+        return False, (f'{mode.name} needs {need}: only DEFAULT (placeholder) properties are '
+                       'loaded; run the estimation or load a preset')
+    if props.source == ContactSource.PRESET and not params.allow_preset_properties:
+        return False, (f'{mode.name} needs {need}: preset {props.preset_name!r} is loaded but '
+                       'allow_preset_properties is false')
+    bad = []
+    for k in (1, 2):
+        f = props.finger(k)
+        if not (f.linear_valid and _finite(f.mu_c) and f.mu_c > 0.0):
+            bad.append(f'finger {k} mu_c')
+        if needs_r and not (f.rotational_valid and _finite(f.r) and f.r > 0.0):
+            bad.append(f'finger {k} r')
+    if bad:
+        return False, (f'{mode.name} needs {need}; invalid in the {props.source.name} '
+                       f'properties: {", ".join(bad)}')
+    return True, ''
+
+
+def validate_request(request: ModeRequest, props: ContactProperties | None,
+                     params: SlipControllerParams) -> tuple[bool, str]:
+    """Validate a mode request completely, without side effects.
+
+    Args:
+        request: The request (SI).
+        props: Latest contact properties (refreshed by the caller, §4.1).
+        params: Controller parameters.
+
+    Returns:
+        ``(ok, message)``; the message names the offending field and value.
+    """
+    try:
+        mode = SlipMode(request.mode)
+    except ValueError:
+        return False, f'unknown mode {request.mode!r} (expected {_MODE_NAMES})'
+    fields = {'duration': request.duration, 'distance': request.distance,
+              'angle': request.angle, 'direction.x': request.direction[0],
+              'direction.y': request.direction[1], 'direction.z': request.direction[2]}
+    for name, value in fields.items():
+        if not _finite(value):
+            return False, f'{name} = {value!r} is not a finite number'
+    p = params
+    if mode in (SlipMode.LINEAR, SlipMode.ROTATIONAL) and not (
+            p.min_duration <= request.duration <= p.max_duration):
+        return False, (f'duration = {request.duration!r} s outside '
+                       f'[{p.min_duration}, {p.max_duration}] s')
+    if mode == SlipMode.LINEAR:
+        if not request.distance > 0.0:
+            return False, f'distance = {request.distance!r} m must be > 0'
+        if request.distance > p.max_linear_distance:
+            return False, (f'distance = {request.distance!r} m is beyond the grasp '
+                           f'(max_linear_distance = {p.max_linear_distance} m)')
+    if mode == SlipMode.ROTATIONAL:
+        if not abs(request.angle) > 0.0:
+            return False, f'angle = {request.angle!r} rad must be non-zero'
+        if abs(request.angle) > p.max_angle:
+            return False, (f'|angle| = {abs(request.angle)!r} rad exceeds '
+                           f'max_angle = {p.max_angle} rad')
+    return check_contact(mode, props, params)
+
+
+def build_controller(request: ModeRequest, props: ContactProperties | None,
+                     params: SlipControllerParams, t: float,
+                     previous: SlipController | None = None) -> SwitchOutcome:
+    """Validate ``request`` and build the complete controller for it (CE-2).
+
+    Nothing is mutated when the request is rejected. When it is accepted, a running
+    trajectory of ``previous`` is aborted with "preempted" (reported in ``preempted``).
+
+    Args:
+        request: The request (SI).
+        props: Latest contact properties.
+        params: Controller parameters (snapshotted into the new controller).
+        t: Request time [s] on the stamps' clock: the trajectory starts here.
+        previous: Controller currently in charge (for hand-over force and preemption).
+
+    Returns:
+        The outcome; swap ``outcome.controller`` in when ``outcome.ok``.
+    """
+    ok, message = validate_request(request, props, params)
+    if not ok:
+        return SwitchOutcome(False, message)
+    mode = SlipMode(request.mode)
+    last = previous.last_force if previous is not None else None
+    if mode == SlipMode.OFF:
+        preempted = previous.abort('preempted', t) if previous is not None else None
+        return SwitchOutcome(True, 'OFF', OffController(params), final_force=last,
+                             preempted=preempted)
+    assert props is not None
+    contact = ControlContact.from_properties(
+        props, use_r=mode in (SlipMode.HOLD, SlipMode.ROTATIONAL) or props.valid)
+    controller: SlipController
+    if mode == SlipMode.HOLD:
+        controller = HoldController(params, contact, initial_force=last)
+        text = 'HOLD'
+    elif mode == SlipMode.HINGE:
+        controller = HingeController(params, contact)
+        text = 'HINGE'
+    elif mode == SlipMode.LINEAR:
+        dx, dy = request.direction[0], request.direction[1]
+        latch = request.latch_direction or not math.hypot(dx, dy) > 0.0
+        controller = LinearController(params, contact, request.distance, request.duration, t,
+                                      direction=None if latch else (dx, dy))
+        how = 'latched' if latch else f'({dx:.3f}, {dy:.3f})'
+        text = (f'LINEAR {request.distance:.4f} m in {request.duration:.3f} s, '
+                f'direction {how}')
+    else:
+        controller = RotationalController(params, contact, request.angle, request.duration, t,
+                                          latch=request.latch_direction)
+        text = (f'ROTATIONAL {request.angle:.4f} rad in {request.duration:.3f} s'
+                f'{", sign latched" if request.latch_direction else ""}')
+    preempted = previous.abort('preempted', t) if previous is not None else None
+    preset = contact.source == ContactSource.PRESET
+    if preset:
+        text += f' (WARN: preset {contact.preset_name!r} in use)'
+    return SwitchOutcome(True, text, controller, preempted=preempted, preset_in_use=preset)

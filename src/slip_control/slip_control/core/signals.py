@@ -1,0 +1,261 @@
+# SPDX-License-Identifier: Apache-2.0
+"""Per-finger sensor samples and their two-finger combination (control_and_estimation §1).
+
+Per finger, in the raw sensor frames ``ft_sensor_k`` / ``vel_sensor_k`` (bias removed):
+``f_n = |Fz|``, ``f_t = ‖(Fx, Fy)‖``, ``τ = Tz``, ``v = ‖(vx, vy)‖``, ``ω``.
+
+Two-finger combination (§1.2): each finger's ``(Fx, Fy, Tz)`` and ``(vx, vy, ω)`` is rotated into
+``gripper_middle`` with `slip_gripper_driver.core.frames.planar_to_middle` (finger 2's z flips);
+then, with primes for middle-frame values,
+
+* signed means ``v̄ = (v1' + v2')/2`` (xy), ``ω̄ = (ω1' + ω2')/2``, ``F̄ = (F1' + F2')/2``,
+  ``τ̄ = (τ1' + τ2')/2`` — used for direction-aware progress (§4.2);
+* the reference's magnitude-of-mean form ``vx = |vx1' + vx2'|/2`` etc. — its norms equal the
+  norms of the signed means, so ``ft = ‖(F̄x, F̄y)‖``, ``D = ‖(F̄x, F̄y, τ̄/r)‖`` and
+  ``v_s = ‖(v̄x, v̄y, r·ω̄)‖`` are computed from the signed means directly.
+
+The reference's ``f_n`` (|mean of the middle-frame Fz|) is the *net* axial force, ≈ 0 in a
+squeeze; we expose the grasp force ``−(Fz1 + Fz2)/2`` and the mean ``|Fz|`` instead (both only
+logged by the controllers, §4.8).
+
+Time: every sample carries its acquisition stamp [s]; freshness is judged against the
+evaluation time ``t`` passed in by the caller (node clock or replay clock), never a wall clock.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from slip_gripper_driver.core.frames import FrameParams, planar_to_middle
+
+INF = float('inf')
+
+
+@dataclass(frozen=True, slots=True)
+class WrenchSample:
+    """Bias-removed wrench of one finger in ``ft_sensor_k``.
+
+    Attributes:
+        fx: Force x [N].
+        fy: Force y [N].
+        fz: Force z [N] (squeezing is negative).
+        tz: Torque about z [N·m].
+        stamp: Acquisition time [s].
+    """
+
+    fx: float
+    fy: float
+    fz: float
+    tz: float
+    stamp: float
+
+    @property
+    def normal_force(self) -> float:
+        """``f_n = |Fz|`` [N]."""
+        return abs(self.fz)
+
+    @property
+    def tangential_force(self) -> float:
+        """``f_t = ‖(Fx, Fy)‖`` [N]."""
+        return math.hypot(self.fx, self.fy)
+
+    def finite(self) -> bool:
+        """All components and the stamp are finite numbers."""
+        return all(math.isfinite(x) for x in (self.fx, self.fy, self.fz, self.tz, self.stamp))
+
+
+@dataclass(frozen=True, slots=True)
+class TwistSample:
+    """Slip twist of one finger in ``vel_sensor_k`` (object relative to pad).
+
+    Attributes:
+        vx: Sliding velocity x [m/s].
+        vy: Sliding velocity y [m/s].
+        omega: Rotation rate about z [rad/s].
+        stamp: Acquisition time [s].
+        valid: False when the sensor marks the sample unusable (e.g. ω invalid in single-chip
+            mode); an invalid sample counts as stale.
+    """
+
+    vx: float
+    vy: float
+    omega: float
+    stamp: float
+    valid: bool = True
+
+    @property
+    def speed(self) -> float:
+        """``v = ‖(vx, vy)‖`` [m/s]."""
+        return math.hypot(self.vx, self.vy)
+
+    def usable(self) -> bool:
+        """Marked valid and all components finite."""
+        return self.valid and all(
+            math.isfinite(x) for x in (self.vx, self.vy, self.omega, self.stamp))
+
+
+@dataclass(frozen=True, slots=True)
+class SensorSnapshot:
+    """Latest sample of each stream (``None`` until the first one arrives).
+
+    Sensor callbacks build a new snapshot (``snapshot.with_twist(1, sample)``) and replace the
+    node's reference in one assignment (CE-8); cores only read it.
+    """
+
+    wrench_1: WrenchSample | None = None
+    wrench_2: WrenchSample | None = None
+    twist_1: TwistSample | None = None
+    twist_2: TwistSample | None = None
+
+    def with_wrench(self, finger: int, sample: WrenchSample) -> SensorSnapshot:
+        """Copy with finger ``finger``'s wrench replaced."""
+        if finger == 1:
+            return SensorSnapshot(sample, self.wrench_2, self.twist_1, self.twist_2)
+        if finger == 2:
+            return SensorSnapshot(self.wrench_1, sample, self.twist_1, self.twist_2)
+        raise ValueError(f'finger must be 1 or 2, got {finger!r}')
+
+    def with_twist(self, finger: int, sample: TwistSample) -> SensorSnapshot:
+        """Copy with finger ``finger``'s twist replaced."""
+        if finger == 1:
+            return SensorSnapshot(self.wrench_1, self.wrench_2, sample, self.twist_2)
+        if finger == 2:
+            return SensorSnapshot(self.wrench_1, self.wrench_2, self.twist_1, sample)
+        raise ValueError(f'finger must be 1 or 2, got {finger!r}')
+
+
+@dataclass(frozen=True, slots=True)
+class InputStatus:
+    """Freshness of the inputs at evaluation time ``t`` (CE-3).
+
+    Attributes:
+        velocity_fresh: Both twists present, usable and at most ``velocity_stale_after`` old.
+        ft_fresh: Both wrenches present, finite and at most ``ft_stale_after`` old.
+        synced: Finger-2 twist stamp within ``sync_tolerance`` of finger 1's.
+        velocity_age: Age of the older twist [s] (inf if missing).
+        ft_age: Age of the older wrench [s] (inf if missing).
+    """
+
+    velocity_fresh: bool
+    ft_fresh: bool
+    synced: bool
+    velocity_age: float
+    ft_age: float
+
+    @property
+    def all_fresh(self) -> bool:
+        """Velocity and F/T fresh and the twists synchronised."""
+        return self.velocity_fresh and self.ft_fresh and self.synced
+
+
+def assess_inputs(snapshot: SensorSnapshot, t: float, *, velocity_stale_after: float,
+                  ft_stale_after: float, sync_tolerance: float) -> InputStatus:
+    """Judge staleness and synchronisation from stamps (CE-3).
+
+    Args:
+        snapshot: Latest samples.
+        t: Evaluation time [s] (same clock as the stamps).
+        velocity_stale_after: Maximum twist age [s].
+        ft_stale_after: Maximum wrench age [s].
+        sync_tolerance: Maximum ``|stamp2 − stamp1|`` of the twists [s].
+
+    Returns:
+        The freshness flags and ages. A sample stamped in the future (clock skew) has a
+        negative age and counts as fresh.
+    """
+    t1, t2 = snapshot.twist_1, snapshot.twist_2
+    if t1 is None or t2 is None or not (t1.usable() and t2.usable()):
+        v_age = INF
+        synced = False
+    else:
+        v_age = t - min(t1.stamp, t2.stamp)
+        synced = abs(t2.stamp - t1.stamp) <= sync_tolerance
+    w1, w2 = snapshot.wrench_1, snapshot.wrench_2
+    if w1 is None or w2 is None or not (w1.finite() and w2.finite()):
+        f_age = INF
+    else:
+        f_age = t - min(w1.stamp, w2.stamp)
+    return InputStatus(velocity_fresh=v_age <= velocity_stale_after,
+                       ft_fresh=f_age <= ft_stale_after, synced=synced,
+                       velocity_age=v_age, ft_age=f_age)
+
+
+@dataclass(frozen=True, slots=True)
+class MiddleWrench:
+    """Two-finger mean wrench in ``gripper_middle`` (§1.2).
+
+    Attributes:
+        fx: Mean x force ``(Fx1' + Fx2')/2`` [N].
+        fy: Mean y force [N].
+        tz: Mean torque about +z ``(τ1' + τ2')/2`` [N·m].
+        grasp_force: ``−(Fz1 + Fz2)/2`` [N] (raw frames; positive when squeezing).
+        normal_force: ``(|Fz1| + |Fz2|)/2`` [N].
+    """
+
+    fx: float
+    fy: float
+    tz: float
+    grasp_force: float
+    normal_force: float
+
+    @property
+    def tangential_force(self) -> float:
+        """``ft = ‖(F̄x, F̄y)‖`` [N], the per-finger tangential load."""
+        return math.hypot(self.fx, self.fy)
+
+    def limit_surface_load(self, r: float) -> float:
+        """``D = ‖(F̄x, F̄y, τ̄/r)‖`` [N] (§4.4); ``r`` [m] must already be guarded (≥ 1e-5)."""
+        return math.sqrt(self.fx * self.fx + self.fy * self.fy + (self.tz / r) ** 2)
+
+
+@dataclass(frozen=True, slots=True)
+class MiddleTwist:
+    """Two-finger mean slip twist in ``gripper_middle`` (§1.2).
+
+    Attributes:
+        vx: Signed mean ``(vx1' + vx2')/2`` [m/s].
+        vy: Signed mean [m/s].
+        omega: Signed mean ``(ω1' + ω2')/2`` about +z [rad/s].
+    """
+
+    vx: float
+    vy: float
+    omega: float
+
+    @property
+    def speed(self) -> float:
+        """``‖v̄‖`` [m/s] (equals the reference ``‖(|vx|, |vy|)‖``)."""
+        return math.hypot(self.vx, self.vy)
+
+    def slip_speed(self, r: float) -> float:
+        """``v_s = ‖(v̄x, v̄y, r·ω̄)‖`` [m/s] for a torsional radius ``r`` [m]."""
+        w = r * self.omega
+        return math.sqrt(self.vx * self.vx + self.vy * self.vy + w * w)
+
+
+def combine_wrenches(frames: FrameParams, w1: WrenchSample, w2: WrenchSample) -> MiddleWrench:
+    """Mean wrench of both fingers in ``gripper_middle`` (§1.2).
+
+    Args:
+        frames: Frame constants (fixed sensor rotations).
+        w1: Finger-1 wrench in ``ft_sensor_1``.
+        w2: Finger-2 wrench in ``ft_sensor_2``.
+    """
+    x1, y1, z1 = planar_to_middle(frames, 1, w1.fx, w1.fy, w1.tz)
+    x2, y2, z2 = planar_to_middle(frames, 2, w2.fx, w2.fy, w2.tz)
+    return MiddleWrench(fx=0.5 * (x1 + x2), fy=0.5 * (y1 + y2), tz=0.5 * (z1 + z2),
+                        grasp_force=-0.5 * (w1.fz + w2.fz),
+                        normal_force=0.5 * (abs(w1.fz) + abs(w2.fz)))
+
+
+def combine_twists(frames: FrameParams, v1: TwistSample, v2: TwistSample) -> MiddleTwist:
+    """Mean slip twist of both fingers in ``gripper_middle`` (§1.2).
+
+    Args:
+        frames: Frame constants (fixed sensor rotations).
+        v1: Finger-1 twist in ``vel_sensor_1``.
+        v2: Finger-2 twist in ``vel_sensor_2``.
+    """
+    x1, y1, z1 = planar_to_middle(frames, 1, v1.vx, v1.vy, v1.omega)
+    x2, y2, z2 = planar_to_middle(frames, 2, v2.vx, v2.vy, v2.omega)
+    return MiddleTwist(vx=0.5 * (x1 + x2), vy=0.5 * (y1 + y2), omega=0.5 * (z1 + z2))
