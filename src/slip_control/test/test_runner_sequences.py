@@ -1,0 +1,251 @@
+# SPDX-License-Identifier: Apache-2.0
+"""Runner sequences (§5.3, §3.8, §5.4) and the ROS-free step machine (CE-9)."""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import pytest
+
+from slip_control.core.contact import ContactProperties, ContactSource
+from slip_control.core.controllers import SlipMode
+from slip_control.core.estimator import EstimationPhase
+from slip_control.core.mode_switch import ModeRequest
+from slip_control.core.params import ExperimentRunnerParams
+from slip_control.core.runner_sequences import (FORCE_PROFILE_DURATION, RUNNER_MODES, Action,
+                                                CallResult, CellFlags, PoseOffset,
+                                                SequenceRunner, build_sequence,
+                                                force_tracking_profile)
+
+P = ExperimentRunnerParams()
+
+
+class _Later:
+    """A pending call that completes at a given time."""
+
+    def __init__(self, cell: FakeCell, at: float, result: CallResult) -> None:
+        self.cell, self.at, self.res = cell, at, result
+
+    def done(self) -> bool:
+        return self.cell.now >= self.at
+
+    def result(self) -> CallResult:
+        return self.res
+
+
+@dataclass
+class FakeCell:
+    """Records calls; arm moves end after their duration; services answer after 5 ms."""
+
+    props: ContactProperties = field(default_factory=lambda: ContactProperties(
+        source=ContactSource.ESTIMATED))
+    reject_modes: tuple[int, ...] = ()
+    never_answer: str = ''
+    now: float = 0.0
+    calls: list[tuple[float, str, Any]] = field(default_factory=list)
+    recording: bool = False
+
+    def _rec(self, t: float, name: str, arg: Any = None) -> None:
+        self.calls.append((t, name, arg))
+
+    def command_force(self, force: float, t: float) -> CallResult:
+        self._rec(t, 'force', force)
+        return CallResult(True)
+
+    def set_slip_mode(self, request: ModeRequest, t: float) -> Any:
+        self._rec(t, 'mode', SlipMode(request.mode))
+        if request.mode in self.reject_modes:
+            return CallResult(False, 'HOLD needs valid mu_c and r')
+        return _Later(self, t + 0.005, CallResult(True))
+
+    def start_estimation(self, phase: EstimationPhase, duration: float, t: float) -> Any:
+        self._rec(t, 'estimate', (phase, duration))
+        if self.never_answer == 'estimate':
+            return _Later(self, math.inf, CallResult(True))
+        return _Later(self, t + 0.005, CallResult(True))
+
+    def read_properties(self, t: float) -> CallResult:
+        self._rec(t, 'read')
+        return CallResult(True, value=self.props)
+
+    def bias_ft(self, t: float) -> CallResult:
+        self._rec(t, 'bias')
+        return CallResult(True)
+
+    def move_gripper(self, lift: float, lateral: float, rotation: float, duration: float,
+                     t: float) -> CallResult:
+        self._rec(t, 'move', (lift, lateral, rotation, duration))
+        return CallResult(True, until=t + duration)
+
+    def move_to_pickup(self, position: tuple[float, ...], euler_xyz: tuple[float, ...],
+                       t: float) -> CallResult:
+        self._rec(t, 'pickup', position)
+        return CallResult(True, until=t + 3.0)
+
+    def move_joints(self, names: tuple[str, ...], positions: tuple[float, ...],
+                    duration: float, t: float) -> CallResult:
+        self._rec(t, 'joints', duration)
+        return CallResult(True, until=t + duration)
+
+    def start_recording(self, name: str, topics: tuple[str, ...], t: float) -> CallResult:
+        self._rec(t, 'record', name)
+        self.recording = True
+        return CallResult(True, value=f'bags/{name}')
+
+    def stop_recording(self, t: float) -> CallResult:
+        self._rec(t, 'stop_record')
+        self.recording = False
+        return CallResult(True)
+
+    def names(self) -> list[str]:
+        return [c[1] for c in self.calls]
+
+
+def _run(runner: SequenceRunner, cell: FakeCell, t_max: float = 200.0,
+         dt: float = 0.002) -> Any:
+    t = 0.0
+    while t < t_max:
+        cell.now = t
+        prog = runner.poll(t)
+        if prog.finished:
+            return prog
+        t += dt
+    raise AssertionError('sequence did not finish')
+
+
+def _valid_props() -> ContactProperties:
+    from slip_control.core.contact import FingerContact
+    f = FingerContact(mu_c=0.4, mu_s=0.44, mu_v=1.0, r=0.005, u=2.5e-5, linear_valid=True,
+                      viscous_valid=True, static_valid=True, rotational_valid=True)
+    return ContactProperties(f, f, ContactSource.ESTIMATED)
+
+
+def test_est_contact_follows_the_exploration_procedure() -> None:
+    cell = FakeCell(props=_valid_props())
+    seq = build_sequence('est_contact', P, recording_name='est_contact_wood_1')
+    runner = SequenceRunner(seq, cell, P, flags=CellFlags(at_pickup=True, joints_reset=True,
+                                                          gripper_open=True))
+    prog = _run(runner, cell)
+    assert prog.success, prog.message
+    assert prog.estimate is not None and prog.estimate.valid
+    assert prog.bag_path == 'bags/est_contact_wood_1' and not cell.recording
+    calls = cell.calls
+    names = [c[1] for c in calls]
+    assert names[0] == 'record' and names[-1] == 'stop_record'
+    forces = [c[2] for c in calls if c[1] == 'force']
+    assert forces == [10.0, 5.0, -8.0]
+    est = [(c[0], c[2]) for c in calls if c[1] == 'estimate']
+    assert [e[1][0] for e in est] == [EstimationPhase.LINEAR, EstimationPhase.ROTATIONAL]
+    moves = [(c[0], c[2]) for c in calls if c[1] == 'move']
+    assert moves[0][1] == (-0.01, 0.0, 0.0, 0.8)
+    assert moves[1][1][2] == pytest.approx(0.17453) and moves[2][1][2] == pytest.approx(-0.17453)
+    assert moves[-1][1][0] == pytest.approx(0.01)             # back to the pick-up pose
+    # The linear phase covers the descent; the rotational phase starts ≈ 1 s later.
+    assert moves[0][0] >= est[0][0]
+    assert est[1][0] - est[0][0] == pytest.approx(1.0, abs=0.02)
+    assert moves[1][0] >= est[1][0]
+    # Grasp wait of 2 s before the exploration force.
+    f_times = [c[0] for c in calls if c[1] == 'force']
+    assert f_times[1] - f_times[0] >= 2.0
+    assert runner.flags.gripper_open and not runner.flags.holding
+    assert runner.flags.contact_estimated and runner.offset == PoseOffset()
+
+
+def test_est_contact_reports_invalid_estimate_and_still_cleans_up() -> None:
+    cell = FakeCell()           # ESTIMATED but no valid flags
+    seq = build_sequence('est_contact', P, recording_name='abc')
+    prog = _run(SequenceRunner(seq, cell, P, flags=CellFlags(at_pickup=True)), cell)
+    assert not prog.success and 'contact estimate valid' in prog.message
+    assert not cell.recording and cell.names()[-1] == 'stop_record'
+    # It released and returned to the pick-up pose before the check.
+    assert -8.0 in [c[2] for c in cell.calls if c[1] == 'force']
+
+
+def test_preconditions_and_rejections_fail_cleanly() -> None:
+    cell = FakeCell()
+    prog = _run(SequenceRunner(build_sequence('pick_up_object', P), cell, P), cell)
+    assert not prog.success and 'contact_estimated' in prog.message
+    assert cell.calls == []
+    cell = FakeCell(reject_modes=(int(SlipMode.HOLD),))
+    seq = build_sequence('hold_mode', P, duration=5.0, recording_name='x_hold_mode_1')
+    prog = _run(SequenceRunner(seq, cell, P, flags=CellFlags(holding=True)), cell)
+    assert not prog.success and 'HOLD needs valid' in prog.message
+    assert cell.names() == ['record', 'mode', 'stop_record']
+    # Optional HOLD in `grasp` is only logged.
+    cell = FakeCell(reject_modes=(int(SlipMode.HOLD),))
+    prog = _run(SequenceRunner(build_sequence('grasp', P), cell, P), cell)
+    assert prog.success and any('failed (ignored)' in line for line in prog.log)
+
+
+def test_step_timeout() -> None:
+    cell = FakeCell(props=_valid_props(), never_answer='estimate')
+    seq = build_sequence('est_contact', P)
+    prog = _run(SequenceRunner(seq, cell, P, flags=CellFlags(at_pickup=True, holding=True)),
+                cell, t_max=100.0, dt=0.05)
+    assert not prog.success and 'timed out after 30.0 s' in prog.message
+    assert 30.0 < prog.elapsed < 31.0
+
+
+def test_slip_sequences_and_hinge() -> None:
+    cell = FakeCell()
+    seq = build_sequence('linear_slippage', P, duration=2.0, distance=0.02,
+                         recording_name='plastic_linear_t2_2cm_1')
+    prog = _run(SequenceRunner(seq, cell, P, flags=CellFlags(holding=True)), cell)
+    assert prog.success
+    req = next(s.args['request'] for s in seq.steps if s.action == Action.SET_SLIP_MODE)
+    assert req.mode == SlipMode.LINEAR and req.distance == 0.02 and req.latch_direction
+    assert prog.elapsed >= 3.0
+    cell = FakeCell()
+    seq = build_sequence('hinge_mode', P, recording_name='wood_hinge_mode_1')
+    prog = _run(SequenceRunner(seq, cell, P, flags=CellFlags(holding=True, at_hinge=True)), cell)
+    assert prog.success
+    names = cell.names()
+    assert names.index('stop_record') < len(names) - 2      # stopped before HOLD on
+    modes = [c[2] for c in cell.calls if c[1] == 'mode']
+    assert modes == [SlipMode.HINGE, SlipMode.HOLD]
+    move = next(c[2] for c in cell.calls if c[1] == 'move')
+    assert move[2] == pytest.approx(math.radians(60.0), abs=1e-6)
+    assert move[3] == pytest.approx(4.19, abs=0.01)
+
+
+def test_demo_runs_every_stage_in_order() -> None:
+    cell = FakeCell(props=_valid_props())
+    seq = build_sequence('demo', P, recording_name='demo_wood_1')
+    prog = _run(SequenceRunner(seq, cell, P), cell, t_max=400.0, dt=0.01)
+    assert prog.success, prog.message
+    names = cell.names()
+    assert names.index('joints') < names.index('pickup') < names.index('record')
+    modes = [c[2] for c in cell.calls if c[1] == 'mode']
+    assert modes == [SlipMode.OFF, SlipMode.HOLD, SlipMode.OFF, SlipMode.HOLD,
+                     SlipMode.LINEAR, SlipMode.HINGE, SlipMode.HOLD, SlipMode.ROTATIONAL]
+    assert not cell.recording
+
+
+def test_bad_runner_requests() -> None:
+    with pytest.raises(ValueError, match='unknown runner mode'):
+        build_sequence('dance', P)
+    with pytest.raises(ValueError, match='needs distance'):
+        build_sequence('linear_slippage', P, duration=2.0)
+    with pytest.raises(ValueError, match='not finite'):
+        build_sequence('hold_mode', P, duration=float('nan'))
+    for mode in RUNNER_MODES:
+        seq = build_sequence(mode, P, duration=2.0, distance=0.02, angle=0.3)
+        assert all(s.timeout > 0.0 for s in seq.steps)
+
+
+def test_force_tracking_profile_and_playback() -> None:
+    f = force_tracking_profile([0.5, 1.5, 7.5, 12.5, 13.5, 14.0, 14.0 + 1 / 4, 60.0])
+    assert f == pytest.approx([5.0, 10.0, 25.0, 5.0, 5.0, 10.0, 15.0, 5.0])
+    t = np.arange(14.0, 49.0, 0.002)
+    v = force_tracking_profile(t)
+    assert v.min() >= 5.0 - 1e-9 and v.max() <= 15.0 + 1e-9
+    assert pytest.approx(49.0) == FORCE_PROFILE_DURATION
+    cell = FakeCell()
+    seq = build_sequence('force_tracking_test', P, recording_name='sponge_1')
+    prog = _run(SequenceRunner(seq, cell, P), cell, t_max=70.0, dt=0.002)
+    assert prog.success
+    forces = [c[2] for c in cell.calls if c[1] == 'force']
+    assert forces[0] == 5.0 and forces[-1] == 0.0 and len(forces) > 20000
+    assert max(forces) == 25.0 and not cell.recording

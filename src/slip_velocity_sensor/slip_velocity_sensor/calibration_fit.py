@@ -1,0 +1,284 @@
+# SPDX-License-Identifier: Apache-2.0
+"""Command-line tool for the velocity-sensor calibration (hardware_protocols spec §3.7).
+
+Sub-commands::
+
+    calibration_fit fit RECORDINGS_DIR --out-dir DIR [--model abs|signed|none] ...
+        Fit the 12 recordings Sensor<N>chip<k><x|y>.csv (columns t [s], v [m/s]: raw chip
+        speed in single-chip mode) and write, per sensor, calibration_sensor_<N>.yaml (SI, the
+        file the node loads), a report plot (PNG) and a residual table (CSV).
+    calibration_fit from-table TABLE.csv --out-dir DIR
+        Write calibration files from the reference table (velocity_sensor_calibration.csv).
+    calibration_fit synth OUT_DIR [--truth-table TABLE.csv]
+        Write 12 synthetic recordings of the procedure (to try the tool without hardware).
+
+Recordings from bags are converted by the recorder tooling; this tool reads CSV.
+"""
+from __future__ import annotations
+
+import argparse
+import csv
+import math
+import re
+import sys
+from dataclasses import replace
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+
+from slip_velocity_sensor.core import calibration as cal_mod
+from slip_velocity_sensor.core.calibration import (AxisCalibration, ChipCalibration,
+                                                   SensorCalibration)
+from slip_velocity_sensor.core.calibration_fit import (FIT_MODELS, AxisFit, FitError,
+                                                       FitParams, fit_axis)
+from slip_velocity_sensor.core.procedure import (ProcedureParams, SynthesisParams,
+                                                 synthesize_recording)
+
+RECORDING_RE = re.compile(r'Sensor(\d+)chip([123])([xy])\.csv$')
+CHIPS = (1, 2, 3)
+AXES = ('x', 'y')
+
+
+def read_recording(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """Columns ``t`` [s] and ``v`` [m/s] of a recording CSV."""
+    with path.open(newline='', encoding='utf-8') as handle:
+        reader = csv.DictReader(handle)
+        if reader.fieldnames is None or not {'t', 'v'} <= set(reader.fieldnames):
+            raise ValueError(f'{path}: needs columns t [s] and v [m/s], got {reader.fieldnames}')
+        rows = [(float(r['t']), float(r['v'])) for r in reader]
+    data = np.asarray(rows, dtype=np.float64).reshape(-1, 2)
+    return data[:, 0], data[:, 1]
+
+
+def write_recording(path: Path, t: np.ndarray, v: np.ndarray) -> None:
+    """Write a recording CSV (``t`` [s], ``v`` [m/s])."""
+    with path.open('w', newline='', encoding='utf-8') as handle:
+        writer = csv.writer(handle)
+        writer.writerow(('t', 'v'))
+        writer.writerows(zip((f'{x:.6f}' for x in t), (f'{x:.7f}' for x in v)))
+
+
+def find_recordings(directory: Path) -> dict[int, dict[tuple[int, str], Path]]:
+    """``{sensor: {(chip, axis): path}}`` of the recordings in ``directory``."""
+    found: dict[int, dict[tuple[int, str], Path]] = {}
+    for path in sorted(directory.iterdir()):
+        match = RECORDING_RE.fullmatch(path.name)
+        if match:
+            found.setdefault(int(match[1]), {})[(int(match[2]), match[3])] = path
+    return found
+
+
+def read_table(path: Path) -> dict[int, SensorCalibration]:
+    """Calibrations from the reference table (a in 1/(mm/s) converted to SI)."""
+    values: dict[int, dict[tuple[int, str], AxisCalibration]] = {}
+    radius: dict[int, float] = {}
+    with path.open(newline='', encoding='utf-8') as handle:
+        for row in csv.DictReader(handle):
+            sensor = int(row['sensor'])
+            a_si = round(float(row['a_per_mm_s']) * 1000.0, 10)
+            values.setdefault(sensor, {})[(int(row['chip']), row['axis'])] = \
+                AxisCalibration(a=a_si, b=float(row['b']))
+            radius[sensor] = round(float(row['radius_mm']) / 1000.0, 10)
+    out = {}
+    for sensor, axes in values.items():
+        chips = tuple(ChipCalibration(x=axes[(c, 'x')], y=axes[(c, 'y')]) for c in CHIPS)
+        out[sensor] = SensorCalibration(
+            sensor=f'sensor_{sensor}', radius=radius[sensor], chips=chips,
+            source=f'reference table {path.name} (hardware_protocols spec §3.6)')
+    return out
+
+
+# --------------------------------------------------------------------------- fit
+
+
+def _plot(path: Path, sensor: int, fits: dict[tuple[int, str], AxisFit]) -> None:
+    import matplotlib
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(2, 3, figsize=(13, 7), sharex=True, squeeze=False)
+    for col, chip in enumerate(CHIPS):
+        for row, axis in enumerate(AXES):
+            ax = axes[row][col]
+            fit = fits[(chip, axis)]
+            for direction, marker, label in ((1, 'o', '+ direction'), (-1, 's', '- direction')):
+                trs = [tr for tr in fit.accepted if tr.direction == direction]
+                ax.plot([abs(tr.v_m) * 1e3 for tr in trs], [tr.q for tr in trs], marker,
+                        ls='none', mfc='none', label=label)
+            speeds = np.linspace(0.0, max(abs(tr.v_m) for tr in fit.accepted), 50)
+            reg = speeds if fit.model != 'none' else np.zeros_like(speeds)
+            ax.plot(speeds * 1e3, fit.raw.b + fit.raw.a * reg, 'k-', label=f'fit ({fit.model})')
+            for sub, style in ((fit.positive, 'C0:'), (fit.negative, 'C1:')):
+                if sub is not None:
+                    ax.plot(speeds * 1e3, sub.b + sub.a * speeds, style)
+            check = fit.summary()['check_rms_m']
+            ax.set_title(f'chip {chip} {axis}: b={fit.calibration.b:.4f} '
+                         f'a={fit.calibration.a:.3f} 1/(m/s)\n'
+                         f'check rms {float(check) * 1e3:.3f} mm', fontsize=9)
+            ax.grid(True, alpha=0.3)
+            ax.ticklabel_format(axis='y', useOffset=False)
+            if row == 1:
+                ax.set_xlabel('|v_m| [mm/s]')
+            if col == 0:
+                ax.set_ylabel('q = measured / true')
+    axes[0][0].legend(fontsize=8)
+    fig.suptitle(f'Sensor {sensor}: q = b + a·term(v_m)')
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def _write_residuals(path: Path, fits: dict[tuple[int, str], AxisFit]) -> None:
+    with path.open('w', newline='', encoding='utf-8') as handle:
+        writer = csv.writer(handle)
+        writer.writerow(('chip', 'axis', 'traverse', 'direction', 'duration_s', 'v_m_m_s', 'q',
+                         'q_residual', 'check_error_mm', 'check_error_b_only_mm'))
+        for (chip, axis), fit in sorted(fits.items()):
+            for i, tr in enumerate(fit.accepted):
+                writer.writerow((chip, axis, i, tr.direction, f'{tr.duration:.4f}',
+                                 f'{tr.v_m:.6f}', f'{tr.q:.6f}', f'{fit.residuals[i]:.6f}',
+                                 f'{fit.check_errors[i] * 1e3:.4f}',
+                                 f'{fit.check_errors_b_only[i] * 1e3:.4f}'))
+
+
+def _print_table(sensor: int, fits: dict[tuple[int, str], AxisFit]) -> None:
+    print(f'\nSensor {sensor}')
+    print(f'{"chip":>4} {"ax":>2} {"b":>7} {"a[1/(m/s)]":>10} {"b+":>7} {"a+":>7} {"b-":>7} '
+          f'{"a-":>7} {"n":>3} {"q rms":>8} {"chk rms":>8} {"b-only":>8}')
+    for (chip, axis), fit in sorted(fits.items()):
+        s = fit.summary()
+        pos = fit.positive or fit.raw
+        neg = fit.negative or fit.raw
+        print(f'{chip:>4} {axis:>2} {fit.calibration.b:7.4f} {fit.calibration.a:10.4f} '
+              f'{pos.b:7.4f} {pos.a:7.3f} {neg.b:7.4f} {neg.a:7.3f} {fit.raw.n:>3} '
+              f'{fit.raw.residual_rms:8.5f} {float(s["check_rms_m"]) * 1e3:6.3f}mm '
+              f'{float(s["check_b_only_rms_m"]) * 1e3:6.3f}mm')
+
+
+def _fit_command(args: argparse.Namespace) -> int:
+    params = FitParams(distance=args.distance, model=args.model, a_factor=args.a_factor)
+    found = find_recordings(Path(args.recordings))
+    if not found:
+        print(f'no recordings named Sensor<N>chip<k><x|y>.csv in {args.recordings}',
+              file=sys.stderr)
+        return 2
+    out_dir = Path(args.out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    status = 0
+    for sensor, files in sorted(found.items()):
+        missing = [f'chip{c}{a}' for c in CHIPS for a in AXES if (c, a) not in files]
+        if missing:
+            print(f'Sensor {sensor}: missing recordings {missing}; skipped', file=sys.stderr)
+            status = 1
+            continue
+        fits: dict[tuple[int, str], AxisFit] = {}
+        try:
+            for key, path in sorted(files.items()):
+                t, v = read_recording(path)
+                fits[key] = fit_axis(t, v, params)
+        except (FitError, ValueError) as exc:
+            print(f'Sensor {sensor}: {path.name}: {exc}', file=sys.stderr)
+            status = 1
+            continue
+        chips = []
+        for chip in CHIPS:
+            axes = {}
+            for axis in AXES:
+                axis_cal = fits[(chip, axis)].calibration
+                if axis == 'x' and args.zero_x_a:
+                    axis_cal = replace(axis_cal, a=0.0)
+                axes[axis] = axis_cal
+            chips.append(ChipCalibration(**axes))
+        cal = SensorCalibration(
+            sensor=f'sensor_{sensor}', radius=args.radius, chips=tuple(chips),
+            source=f'calibration_fit of {args.recordings} (model {args.model}, '
+                   f'a_factor {args.a_factor:g}{", x a zeroed" if args.zero_x_a else ""})')
+        report = {f'chip_{c}.{a}': fits[(c, a)].summary() for c in CHIPS for a in AXES}
+        yaml_path = out_dir / f'calibration_sensor_{sensor}.yaml'
+        cal_mod.save_calibration(yaml_path, cal, fit=report)
+        _write_residuals(out_dir / f'calibration_sensor_{sensor}_residuals.csv', fits)
+        if not args.no_plot:
+            _plot(out_dir / f'calibration_sensor_{sensor}_report.png', sensor, fits)
+        _print_table(sensor, fits)
+        print(f'wrote {yaml_path}')
+    return status
+
+
+def _from_table_command(args: argparse.Namespace) -> int:
+    out_dir = Path(args.out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    for sensor, cal in sorted(read_table(Path(args.table)).items()):
+        path = out_dir / f'calibration_sensor_{sensor}.yaml'
+        cal_mod.save_calibration(path, cal, header=(
+            'Generated by `calibration_fit from-table` from the reference calibration table.\n'
+            'Values as used by the reference system (x-axis a zeroed by hand there).'))
+        print(f'wrote {path}')
+    return 0
+
+
+def _synth_command(args: argparse.Namespace) -> int:
+    out_dir = Path(args.out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    if args.truth_table:
+        truths = read_table(Path(args.truth_table))
+    else:
+        truths = {s: SensorCalibration(sensor=f'sensor_{s}') for s in (1, 2)}
+    rng = np.random.default_rng(args.seed)
+    synthesis = SynthesisParams(profile=args.profile)
+    for sensor, cal in sorted(truths.items()):
+        for chip in CHIPS:
+            for axis in AXES:
+                rec = synthesize_recording(cal.axis(chip, axis), ProcedureParams(), synthesis, rng)
+                write_recording(out_dir / f'Sensor{sensor}chip{chip}{axis}.csv', rec.t, rec.v)
+    print(f'wrote {6 * len(truths)} recordings to {out_dir}')
+    return 0
+
+
+def _positive(text: str) -> float:
+    value = float(text)
+    if not (math.isfinite(value) and value > 0.0):
+        raise argparse.ArgumentTypeError(f'must be a positive number, got {text!r}')
+    return value
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """Argument parser of the tool."""
+    parser = argparse.ArgumentParser(prog='calibration_fit', description=__doc__.split('\n')[0])
+    sub = parser.add_subparsers(dest='command', required=True)
+    fit = sub.add_parser('fit', help='fit recordings and write calibration files')
+    fit.add_argument('recordings', help='directory with Sensor<N>chip<k><x|y>.csv')
+    fit.add_argument('--out-dir', required=True)
+    fit.add_argument('--model', choices=FIT_MODELS, default='abs',
+                     help='speed term of the fit (abs: symmetric; signed: reference)')
+    fit.add_argument('--a-factor', type=float, default=1.0,
+                     help='hand factor on a (the reference used 0.88); default: raw fit')
+    fit.add_argument('--zero-x-a', action='store_true',
+                     help='set the x-axis a to 0 (as the reference did by hand)')
+    fit.add_argument('--distance', type=_positive, default=0.1, help='stop-to-stop [m]')
+    fit.add_argument('--radius', type=_positive, default=0.0243,
+                     help='chip radius written to the files [m]')
+    fit.add_argument('--no-plot', action='store_true', help='skip the PNG report')
+    fit.set_defaults(func=_fit_command)
+    table = sub.add_parser('from-table', help='calibration files from the reference table')
+    table.add_argument('table', help='velocity_sensor_calibration.csv')
+    table.add_argument('--out-dir', required=True)
+    table.set_defaults(func=_from_table_command)
+    synth = sub.add_parser('synth', help='synthetic procedure recordings')
+    synth.add_argument('out_dir')
+    synth.add_argument('--truth-table', default='', help='true calibration table (CSV)')
+    synth.add_argument('--profile', default='trapezoid',
+                       choices=('constant', 'trapezoid', 'minimum_jerk'))
+    synth.add_argument('--seed', type=int, default=0)
+    synth.set_defaults(func=_synth_command)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point (``calibration_fit``)."""
+    args = build_parser().parse_args(argv)
+    return int(args.func(args))
+
+
+if __name__ == '__main__':
+    sys.exit(main())

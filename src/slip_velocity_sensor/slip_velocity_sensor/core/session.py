@@ -1,0 +1,447 @@
+# SPDX-License-Identifier: Apache-2.0
+"""Sensor session: stamped device lines in, validated SI samples and diagnostics out (ROS-free).
+
+`SensorSession` is the core the lifecycle node wraps. The reader thread hands it bytes or lines
+with their **acquisition** stamp (node clock when the bytes arrived, requirement HW-11); it
+returns one `Sample` per velocity line and keeps everything the diagnostics need.
+
+Validity (requirement HW-10):
+
+* Fused mode (``c0``): vx, vy [m/s], ω [rad/s] in the sensor frame, all valid.
+* Single-chip mode (``c1..c3``): the line carries chip k's **uncalibrated** vx, vy in the
+  **chip frame** and a stale fused ω. The sample therefore has ``valid = False``, NaN twist
+  and ω, and the chip reading in `Sample.chip_vx` / `Sample.chip_vy` (for the chips topic).
+* For ``chip_mode_settle`` seconds after a mode command the mode of arriving lines is unknown:
+  invalid. Likewise between a ``resynch`` notice and the product-ID line that ends it (at most
+  ``resync_timeout``), after a boot banner (device restarted: calibration lost, until the node
+  re-initialises) and after a different name showed up on the port.
+
+Pose integration (host side, sensor frame, like the reference): ``x += vx·dt``, ``y += vy·dt``,
+``θ += ω·dt`` over consecutive valid samples with ``dt`` from acquisition stamps. ``dt <= 0``
+(several lines in one USB read carry one stamp) is skipped without moving the time anchor, so
+the next sample covers the whole interval and no time is lost; ``dt`` is capped at
+``max_integration_dt`` after gaps (lost lines, link stalls); a backwards jump larger than the cap
+re-anchors (clock reset without `reset`).
+"""
+from __future__ import annotations
+
+import math
+import threading
+from dataclasses import dataclass, field
+
+from slip_gripper_driver.core.monitors import AgeMonitor, FrequencyMonitor, Level, Report
+from slip_velocity_sensor.core import protocol
+from slip_velocity_sensor.core.protocol import (BadLine, BootLine, LineParser, LineSplitter,
+                                                NameLine, ParsedLine, ParserCounters,
+                                                ProductIdLine, ProtocolLimits, ResyncLine,
+                                                TextLine, VelocityLine)
+
+NAN = math.nan
+
+
+@dataclass(frozen=True)
+class SessionParams:
+    """Host processing settings of one sensor (SI)."""
+
+    stale_after: float = field(default=0.050, metadata={
+        'unit': 's', 'range': (0.001, 10.0),
+        'description': 'a valid sample older than this is stale for the slip controllers'})
+    expected_rate: float = field(default=120.0, metadata={
+        'unit': 'Hz', 'range': (1.0, 10000.0), 'description': 'nominal line rate'})
+    rate_tolerance: float = field(default=0.1, metadata={
+        'unit': '-', 'range': (0.0, 1.0), 'description': 'allowed relative rate deviation'})
+    integrate_pose: bool = field(default=True, metadata={
+        'description': 'integrate x, y, theta from valid fused samples'})
+    max_integration_dt: float = field(default=0.050, metadata={
+        'unit': 's', 'range': (0.001, 1.0),
+        'description': 'cap on the integration step after gaps between samples'})
+    chip_mode_settle: float = field(default=0.025, metadata={
+        'unit': 's', 'range': (0.0, 1.0),
+        'description': 'samples are invalid this long after a chip-mode command'})
+    resync_timeout: float = field(default=0.2, metadata={
+        'unit': 's', 'range': (0.0, 10.0),
+        'description': 'longest a chip re-sync keeps samples invalid without its end line'})
+
+
+@dataclass(frozen=True, slots=True)
+class Sample:
+    """One velocity sample (one ``v`` line), SI.
+
+    Attributes:
+        stamp: Acquisition time of the line [s].
+        vx: Surface velocity relative to the pad, sensor frame [m/s]; NaN unless fused & valid.
+        vy: [m/s]; NaN unless fused and valid.
+        omega: Angular rate [rad/s]; NaN unless fused and valid.
+        x: Integrated displacement since the last pose reset, sensor frame [m].
+        y: [m].
+        theta: Integrated angle [rad].
+        chip_mode: 0 fused, 1..3 single chip (-1 while a mode switch settles).
+        valid: True when vx, vy, omega are a valid sensor-frame twist.
+        chip_vx: Single-chip mode: chip k's raw tangential speed [m/s] (chip frame, not
+            calibrated); NaN in fused mode.
+        chip_vy: Single-chip mode: raw radial speed [m/s]; NaN in fused mode.
+        excluded_chip: Chip dropped by outlier rejection, -1 for none or unknown (the current
+            firmware does not report it).
+        residual_ratio: Fusion residual ratio, NaN unless reported.
+    """
+
+    stamp: float
+    vx: float
+    vy: float
+    omega: float
+    x: float
+    y: float
+    theta: float
+    chip_mode: int
+    valid: bool
+    chip_vx: float = NAN
+    chip_vy: float = NAN
+    excluded_chip: int = -1
+    residual_ratio: float = NAN
+
+
+@dataclass(frozen=True)
+class SessionDiagnostics:
+    """Snapshot of everything the diagnostics report (SI, times in s)."""
+
+    port: str
+    name: str
+    initialised: bool
+    calibration_source: str
+    calibration_uploaded: bool
+    speed_term: str
+    chip_mode: int
+    rate_hz: float
+    age: float
+    stale: bool
+    samples: int
+    valid_samples: int
+    counters: ParserCounters
+    resync_active: bool
+    product_ids: tuple[int, ...]
+    device_restarts: int
+    name_conflicts: int
+    dt_skipped: int
+    dt_capped: int
+    clock_jumps: int
+    last_bad_reason: str
+    last_text: str
+    link_error: str
+
+
+class SensorSession:
+    """Host-side state of one velocity sensor; see the module docstring.
+
+    Thread-safe: the reader thread feeds lines while service callbacks reset the pose or switch
+    the chip mode and a timer reads diagnostics (one short lock per call).
+
+    Args:
+        params: Processing settings.
+        port: Port path or URL (diagnostics and errors).
+        expected_name: Name the sensor must answer (a different name on the port invalidates).
+        limits: Parser plausibility limits.
+    """
+
+    def __init__(self, params: SessionParams | None = None, *, port: str = '',
+                 expected_name: str = '', limits: ProtocolLimits | None = None) -> None:
+        self.params = params if params is not None else SessionParams()
+        self.port = port
+        self.expected_name = expected_name
+        self.parser = LineParser(limits)
+        self.splitter = LineSplitter(self.parser.limits.max_line_bytes)
+        self._rate = FrequencyMonitor(self.params.expected_rate, self.params.rate_tolerance)
+        self._age = AgeMonitor(self.params.stale_after)
+        self._initialised = False
+        self._calibration_source = ''
+        self._calibration_uploaded = False
+        self._speed_term = ''
+        self._chip_mode = 0
+        self._pending_mode: int | None = None
+        self._mode_settled_at = -math.inf
+        self._resync_until: float | None = None
+        self._product_ids: tuple[int, ...] = ()
+        self._device_restarts = 0
+        self._identity_ok = True
+        self._name_conflicts = 0
+        self._last_bad_reason = ''
+        self._last_text = ''
+        self._link_error = ''
+        self._samples = 0
+        self._valid_samples = 0
+        self._dt_skipped = 0
+        self._dt_capped = 0
+        self._clock_jumps = 0
+        self._x = self._y = self._theta = 0.0
+        self._t_prev: float | None = None
+        self._latest: Sample | None = None
+        self._lock = threading.RLock()
+
+    # ---------------------------------------------------------------- lifecycle hooks
+
+    def mark_initialised(self, *, calibration_source: str, calibration_uploaded: bool,
+                         speed_term: str, chip_mode: int = 0) -> None:
+        """Record a successful handshake + upload (call after every (re)connect).
+
+        Clears the device-restart, name-conflict and link-error conditions.
+
+        Args:
+            calibration_source: Where the uploaded calibration came from (file path, ...).
+            calibration_uploaded: Whether the upload commands were sent.
+            speed_term: The ``calibration.speed_term`` in use.
+            chip_mode: Chip mode the initialisation left the device in.
+        """
+        with self._lock:
+            self._initialised = True
+            self._identity_ok = True
+            self._calibration_source = calibration_source
+            self._calibration_uploaded = calibration_uploaded
+            self._speed_term = speed_term
+            self._chip_mode = chip_mode
+            self._pending_mode = None
+            self._link_error = ''
+            self._t_prev = None
+
+    def link_lost(self, message: str) -> None:
+        """Record a link failure (port named in ``message``); samples stop until re-init."""
+        with self._lock:
+            self._link_error = message
+            self._initialised = False
+            self._t_prev = None
+            self.splitter.clear()
+
+    def chip_mode_sent(self, mode: int, t: float) -> None:
+        """Record that ``c<mode>`` was written at ``t`` [s] (see `protocol.chip_mode_command`).
+
+        Lines arriving within ``chip_mode_settle`` are invalid; later lines are in ``mode``.
+        """
+        protocol.chip_mode_command(mode)  # validates
+        with self._lock:
+            self._pending_mode = mode
+            self._mode_settled_at = t + self.params.chip_mode_settle
+            self._t_prev = None
+
+    def reset_pose(self) -> None:
+        """Zero the integrated x, y, θ (the time anchor is kept)."""
+        with self._lock:
+            self._x = self._y = self._theta = 0.0
+
+    def reset(self) -> None:
+        """Forget all time-dependent state (call when the clock jumped backwards).
+
+        Pose, latest sample, rate and age monitors are reset; counters are kept.
+        """
+        with self._lock:
+            self._x = self._y = self._theta = 0.0
+            self._t_prev = None
+            self._latest = None
+            self._rate = FrequencyMonitor(self.params.expected_rate, self.params.rate_tolerance)
+            self._age = AgeMonitor(self.params.stale_after)
+            self._resync_until = None
+            if self._pending_mode is not None:
+                self._mode_settled_at = -math.inf
+
+    # ---------------------------------------------------------------- data path
+
+    def feed(self, t: float, data: bytes) -> list[Sample]:
+        """Process bytes that arrived at ``t`` [s]; returns the samples of complete lines."""
+        out = []
+        for line, overflow in self.splitter.feed(data):
+            sample = self.handle_line(t, line, overflow)
+            if sample is not None:
+                out.append(sample)
+        return out
+
+    def handle_line(self, t: float, line: bytes, overflow: bool = False) -> Sample | None:
+        """Process one line (without terminator) that arrived at ``t`` [s].
+
+        Args:
+            t: Acquisition stamp [s].
+            line: Line bytes (a trailing ``\\r`` is ignored).
+            overflow: The line reader truncated the line (counted as bad).
+        """
+        return self.handle_parsed(t, self.parser.parse(line, overflow))
+
+    def handle_parsed(self, t: float, parsed: ParsedLine) -> Sample | None:
+        """Process one already parsed line; returns a sample for velocity lines."""
+        with self._lock:
+            return self._handle(t, parsed)
+
+    def _handle(self, t: float, parsed: ParsedLine) -> Sample | None:
+        if isinstance(parsed, VelocityLine):
+            return self._on_velocity(t, parsed)
+        if isinstance(parsed, BadLine):
+            self._last_bad_reason = parsed.reason
+        elif isinstance(parsed, ResyncLine):
+            self._resync_until = t + self.params.resync_timeout
+        elif isinstance(parsed, ProductIdLine):
+            self._product_ids = parsed.ids
+            self._resync_until = None
+        elif isinstance(parsed, BootLine):
+            self._device_restarts += 1
+            self._initialised = False
+            self._chip_mode = 0  # firmware default after a restart
+            self._pending_mode = None
+            self._t_prev = None
+        elif isinstance(parsed, NameLine):
+            if self.expected_name and parsed.name != self.expected_name:
+                self._name_conflicts += 1
+                self._identity_ok = False
+                self._t_prev = None
+        elif isinstance(parsed, TextLine):
+            self._last_text = parsed.text
+        return None
+
+    def _on_velocity(self, t: float, line: VelocityLine) -> Sample:
+        p = self.params
+        self._samples += 1
+        self._rate.tick(t)
+        if self._pending_mode is not None and t >= self._mode_settled_at:
+            self._chip_mode, self._pending_mode = self._pending_mode, None
+        if self._resync_until is not None and t > self._resync_until:
+            self._resync_until = None
+        usable = (self._initialised and self._identity_ok and self._pending_mode is None
+                  and self._resync_until is None)
+        mode = -1 if self._pending_mode is not None else self._chip_mode
+        if not usable or mode != 0:
+            self._t_prev = None
+            chip_vx = line.vx if usable and mode > 0 else NAN
+            chip_vy = line.vy if usable and mode > 0 else NAN
+            sample = Sample(t, NAN, NAN, NAN, self._x, self._y, self._theta, mode, False,
+                            chip_vx, chip_vy)
+            self._latest = sample
+            return sample
+        if p.integrate_pose:
+            self._integrate(t, line)
+        self._valid_samples += 1
+        self._age.tick(t)
+        sample = Sample(t, line.vx, line.vy, line.omega, self._x, self._y, self._theta, 0, True)
+        self._latest = sample
+        return sample
+
+    def _integrate(self, t: float, line: VelocityLine) -> None:
+        cap = self.params.max_integration_dt
+        if self._t_prev is None:
+            self._t_prev = t
+            return
+        dt = t - self._t_prev
+        if dt <= 0.0:
+            self._dt_skipped += 1
+            if dt < -cap:  # the clock went back: re-anchor instead of stalling
+                self._clock_jumps += 1
+                self._t_prev = t
+            return
+        if dt > cap:
+            self._dt_capped += 1
+            dt = cap
+        self._x += line.vx * dt
+        self._y += line.vy * dt
+        self._theta += line.omega * dt
+        self._t_prev = t
+
+    # ---------------------------------------------------------------- queries
+
+    @property
+    def latest(self) -> Sample | None:
+        """The newest sample (valid or not), or None."""
+        return self._latest
+
+    @property
+    def chip_mode(self) -> int:
+        """Chip mode of the device as far as the host knows (-1 while a switch settles)."""
+        return -1 if self._pending_mode is not None else self._chip_mode
+
+    @property
+    def initialised(self) -> bool:
+        """True after `mark_initialised` until a link loss or device restart."""
+        return self._initialised
+
+    @property
+    def needs_reinitialisation(self) -> bool:
+        """True when the device restarted or another name appeared: redo the handshake."""
+        return not self._initialised or not self._identity_ok
+
+    def age(self, t: float) -> float:
+        """Seconds since the newest *valid* sample at time ``t`` (inf when none)."""
+        with self._lock:
+            return self._age.age(t)
+
+    def is_stale(self, t: float) -> bool:
+        """True when no valid sample arrived within ``stale_after`` before ``t``."""
+        with self._lock:
+            return not self._age.fresh(t)
+
+    def rate_hz(self, t: float) -> float:
+        """Velocity lines per second over the last second before ``t`` [Hz]."""
+        with self._lock:
+            return self._rate.rate(t)
+
+    def diagnostics(self, t: float) -> SessionDiagnostics:
+        """Snapshot at time ``t`` [s]."""
+        with self._lock:
+            return self._diagnostics(t)
+
+    def _diagnostics(self, t: float) -> SessionDiagnostics:
+        return SessionDiagnostics(
+            port=self.port, name=self.expected_name, initialised=self._initialised,
+            calibration_source=self._calibration_source,
+            calibration_uploaded=self._calibration_uploaded, speed_term=self._speed_term,
+            chip_mode=self.chip_mode, rate_hz=self.rate_hz(t), age=self.age(t),
+            stale=self.is_stale(t), samples=self._samples, valid_samples=self._valid_samples,
+            counters=self.parser.counters, resync_active=self._resync_until is not None,
+            product_ids=self._product_ids, device_restarts=self._device_restarts,
+            name_conflicts=self._name_conflicts, dt_skipped=self._dt_skipped,
+            dt_capped=self._dt_capped, clock_jumps=self._clock_jumps,
+            last_bad_reason=self._last_bad_reason, last_text=self._last_text,
+            link_error=self._link_error)
+
+    def reports(self, t: float) -> dict[str, Report]:
+        """Diagnostic tasks ``link``, ``rate``, ``chips``, ``calibration`` (ros_interfaces §8)."""
+        with self._lock:
+            return self._reports(t)
+
+    def _reports(self, t: float) -> dict[str, Report]:
+        d = self._diagnostics(t)
+        c = d.counters
+        link_values = (('port', d.port), ('name', d.name), ('lines_good', str(c.good)),
+                       ('lines_bad', str(c.bad)), ('lines_unknown', str(c.unknown)),
+                       ('last_bad_reason', d.last_bad_reason),
+                       ('device_restarts', str(d.device_restarts)),
+                       ('name_conflicts', str(d.name_conflicts)))
+        if d.link_error:
+            link = Report(Level.ERROR, d.link_error, link_values)
+        elif self._name_conflicts and not self._identity_ok:
+            link = Report(Level.ERROR, f'{d.port}: another sensor name appeared on the port',
+                          link_values)
+        elif not d.initialised:
+            msg = 'device restarted, calibration lost' if d.device_restarts else 'not initialised'
+            link = Report(Level.ERROR, f'{d.port}: {msg}', link_values)
+        else:
+            link = Report(Level.OK, f'{d.port}: {d.name}', link_values)
+
+        rate = self._rate.report(t)
+        rate_values = rate.values + (('age_s', f'{d.age:.3f}'), ('stale', str(d.stale)),
+                                     ('dt_skipped', str(d.dt_skipped)),
+                                     ('dt_capped', str(d.dt_capped)))
+        rate = Report(rate.level, rate.message, rate_values)
+
+        ids_ok = all(i == protocol.EXPECTED_PRODUCT_ID for i in d.product_ids)
+        chip_values = (('chip_mode', str(d.chip_mode)), ('resyncs', str(c.resync)),
+                       ('resync_active', str(d.resync_active)),
+                       ('product_ids', ' '.join(f'0x{i:02x}' for i in d.product_ids)))
+        if not ids_ok:
+            chips = Report(Level.ERROR, 'chip product id mismatch after re-sync', chip_values)
+        elif d.resync_active or d.chip_mode != 0:
+            chips = Report(Level.WARN, 'chip re-sync in progress' if d.resync_active
+                           else f'single-chip mode {d.chip_mode}: twist invalid', chip_values)
+        else:
+            chips = Report(Level.OK, 'fused', chip_values)
+
+        cal_values = (('source', d.calibration_source), ('uploaded', str(d.calibration_uploaded)),
+                      ('speed_term', d.speed_term))
+        if not d.calibration_uploaded:
+            cal = Report(Level.ERROR, 'calibration not uploaded', cal_values)
+        elif 'identity' in d.calibration_source:
+            cal = Report(Level.WARN, 'identity calibration (uncalibrated chips)', cal_values)
+        else:
+            cal = Report(Level.OK, 'uploaded', cal_values)
+        return {'link': link, 'rate': rate, 'chips': chips, 'calibration': cal}
