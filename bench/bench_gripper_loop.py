@@ -1,0 +1,185 @@
+# SPDX-License-Identifier: Apache-2.0
+"""Benchmark of the 500 Hz gripper loop (issue 5: line in → voltage written, p99 ≤ 1 ms,
+zero missed ticks over 60 s).
+
+The firmware emulator runs in a child process on a pseudo-terminal (its console entry point,
+``python -m slip_gripper_driver.core.firmware_emulator``) with an object between the fingers
+and, by default, two Net F/T emulators measuring the pad force. This process runs what the
+``gripper_driver`` node runs in its reader threads: `transport.SerialLink` (pyserial
+``serial_for_url`` on the pty) → `bridge.GripperBridge` (parse, observer, grasp-force
+controller in closed loop at 10 N) → ``T<volts>`` written, plus two `netft.NetFTClient`
+threads at 1 kHz each feeding the bridge.
+
+Latency per telemetry line = ``time.monotonic()`` right after the command write returned −
+the line's arrival stamp (taken by the reader when the read returned). A tick is *missed*
+when its command was not written before the next line's period (latency > 2 ms) or no
+command was written for it. Prints a table; never asserts.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+
+_ROOT = Path(__file__).resolve().parents[1]
+_SRC = str(_ROOT / 'src' / 'slip_gripper_driver')
+if _SRC not in sys.path:
+    sys.path.insert(0, _SRC)
+
+from slip_gripper_driver.core.bridge import BridgeParams, GripperBridge  # noqa: E402
+from slip_gripper_driver.core.netft import ForceTorqueScale, FtSample, NetFTClient  # noqa: E402
+from slip_gripper_driver.core.protocol import LineKind  # noqa: E402
+from slip_gripper_driver.core.transport import SerialLink  # noqa: E402
+
+PERIOD_S = 0.002
+WARMUP_S = 1.0
+
+
+def _start_emulator(link: str, seconds: float,
+                    with_ft: bool) -> tuple[subprocess.Popen, list[tuple[str, int]]]:
+    cmd = [sys.executable, '-m', 'slip_gripper_driver.core.firmware_emulator', '--link', link,
+           '--object-width', '0.03', '--initial-opening', '0.031', '--duration', f'{seconds}',
+           '--stats-json']
+    if with_ft:
+        cmd += ['--netft', '127.0.0.1:0', '--netft', '127.0.0.1:0']
+    env = dict(os.environ)
+    env['PYTHONPATH'] = _SRC + os.pathsep + env.get('PYTHONPATH', '')
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, text=True, env=env)
+    boxes: list[tuple[str, int]] = []
+    deadline = time.monotonic() + 20.0
+    assert proc.stdout is not None
+    while time.monotonic() < deadline:
+        line = proc.stdout.readline()
+        if not line:
+            break
+        if line.startswith('Net F/T emulator'):
+            host, port = line.rsplit(' ', 1)[1].strip().rsplit(':', 1)
+            boxes.append((host, int(port)))
+        if line.startswith('gripper firmware emulator on'):
+            return proc, boxes
+    proc.kill()
+    raise RuntimeError('firmware emulator did not start')
+
+
+def run(duration_s: float, with_ft: bool) -> None:
+    """Run the benchmark for ``duration_s`` seconds of measurement and print the table."""
+    tmp = tempfile.mkdtemp(prefix='bench_gripper_')
+    port = os.path.join(tmp, 'gripper')
+    proc, boxes = _start_emulator(port, duration_s + WARMUP_S + 3.0, with_ft)
+
+    n_max = int((duration_s + WARMUP_S + 2.0) / PERIOD_S) + 1000
+    arrival = np.full(n_max, np.nan)
+    written = np.full(n_max, np.nan)
+    count = [0]
+    write_done = [np.nan]
+    lock = threading.Lock()
+    link_holder: list[SerialLink] = []
+
+    def writer(data: bytes) -> bool:
+        ok = link_holder[0].write(data)
+        write_done[0] = time.monotonic()
+        return ok
+
+    bridge = GripperBridge(BridgeParams(), writer)
+
+    def on_line(line: bytes, overflow: bool, t: float) -> None:
+        result = bridge.on_line(line, overflow, t)
+        if result.kind != LineKind.TELEMETRY:
+            return
+        with lock:
+            i = count[0]
+            if i < n_max:
+                arrival[i] = t
+                if result.command is not None and result.written:
+                    written[i] = write_done[0]
+            count[0] = i + 1
+
+    link = SerialLink(port, clock=time.monotonic, on_line=on_line,
+                      on_connected=bridge.on_connected, on_lost=bridge.on_link_lost,
+                      read_timeout_s=0.02)
+    link_holder.append(link)
+    clients: list[NetFTClient] = []
+    scale = ForceTorqueScale(1e6, 1e6, 'N', 'N-m')
+    for finger, (host, box_port) in enumerate(boxes, start=1):
+        def on_sample(sample: FtSample, finger: int = finger) -> None:
+            bridge.on_ft_sample(finger, sample.stamp, sample.wrench[2], True)
+        clients.append(NetFTClient(host, port=box_port, scale=scale, clock=time.monotonic,
+                                   on_sample=on_sample))
+    link.open()
+    for client in clients:
+        client.start()
+    bridge.activate(time.monotonic())
+    link.start()
+    bridge.set_grasp_force(10.0, time.monotonic())
+    time.sleep(WARMUP_S)
+    with lock:
+        first = count[0]
+    cpu0, wall0 = time.process_time(), time.monotonic()
+    time.sleep(duration_s)
+    with lock:
+        last = count[0]
+    cpu1, wall1 = time.process_time(), time.monotonic()
+    status = bridge.status(time.monotonic())
+    bridge.deactivate(time.monotonic())
+    link.close()
+    ft_stats = [c.stats() for c in clients]
+    for client in clients:
+        client.close()
+    out, _ = proc.communicate(timeout=30.0)
+    emu = json.loads(out.strip().splitlines()[-1]) if out.strip() else {}
+
+    a = arrival[first:last]
+    w = written[first:last]
+    latency_us = (w - a) * 1e6
+    unanswered = int(np.isnan(latency_us).sum())
+    lat = latency_us[~np.isnan(latency_us)]
+    gaps = np.diff(a) * 1e3
+    late = int((lat > PERIOD_S * 1e6).sum())
+    expected = int(round((wall1 - wall0) / PERIOD_S))
+    print(f'gripper loop: pty emulator at 500 Hz, {duration_s:.0f} s measured '
+          f'({"closed loop at 10 N with 2 Net F/T clients at 1 kHz" if with_ft else "no F/T"})')
+    print(f'  telemetry lines            {a.size:10d}   (≈ {expected} expected)')
+    print(f'  latency line → T written   p50 {np.percentile(lat, 50):7.1f} µs   '
+          f'p99 {np.percentile(lat, 99):7.1f} µs   max {lat.max():7.1f} µs')
+    print(f'  missed ticks               {late + unanswered:10d}   '
+          f'(latency > 2 ms: {late}, no command: {unanswered})')
+    print(f'  arrival gaps > 3 ms        {int((gaps > 3.0).sum()):10d}   '
+          f'(max gap {gaps.max():.2f} ms; emulator late ticks {emu.get("late_ticks", "?")})')
+    print(f'  host CPU                   {100 * (cpu1 - cpu0) / (wall1 - wall0):9.1f} %  '
+          f'of one core')
+    print(f'  grasp force                {status.measured_grasp_force:10.2f} N   '
+          f'(target 10 N, closed loop: {not status.safe_state and status.in_contact})')
+    for k, s in enumerate(ft_stats, start=1):
+        print(f'  F/T {k}                      {s.accepted:10d} records, lost {s.lost}, '
+              f'out of order {s.out_of_order}, bad {s.bad_datagrams}')
+    print(f'  bad lines {status.bad_line_count}, reconnects {status.reconnect_count}, '
+          f'link callback errors {link.stats().callback_errors}')
+
+
+def main() -> int:
+    """Parse arguments and run."""
+    parser = argparse.ArgumentParser(description=__doc__.split('\n')[0])
+    parser.add_argument('--duration', type=float, default=60.0, help='measured seconds')
+    parser.add_argument('--quick', action='store_true', help='5 s run (make bench)')
+    parser.add_argument('--no-ft', action='store_true', help='without the Net F/T emulators')
+    parser.add_argument('--switch-interval-us', type=float, default=0.0,
+                        help='sys.setswitchinterval for this process [µs]; 0 = Python default '
+                             '(5000 µs): the longest a busy Python thread can delay the reader')
+    args = parser.parse_args()
+    if args.switch_interval_us > 0.0:
+        sys.setswitchinterval(args.switch_interval_us * 1e-6)
+    print(f'GIL switch interval {sys.getswitchinterval() * 1e6:.0f} µs')
+    run(5.0 if args.quick else args.duration, not args.no_ft)
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

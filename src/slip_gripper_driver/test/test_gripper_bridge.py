@@ -1,0 +1,310 @@
+# SPDX-License-Identifier: Apache-2.0
+"""Gripper bridge core: command validation, ceilings and fail-safe sequences.
+
+Deterministic: the firmware emulator runs in simulated time in-process; F/T samples are the
+emulated pad force (``Fz = −F``, both fingers) stamped with the telemetry time.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import pytest
+
+from slip_gripper_driver.core.bridge import (BridgeParams, CommandParams, GripperBridge,
+                                             LineResult, LinkState)
+from slip_gripper_driver.core.firmware_emulator import FirmwareEmulator, GripperModelParams
+from slip_gripper_driver.core.force_control import BypassReason, ForceControlParams
+from slip_gripper_driver.core.param_schema import ParameterError, flatten, from_flat
+from slip_gripper_driver.core.protocol import command_voltage
+from slip_gripper_driver.core.transport import LineReader
+
+NPV = 3.9166
+OBJECT = GripperModelParams(object_width=0.03, object_stiffness=20000.0, initial_opening=0.031)
+
+
+class Rig:
+    """Bridge + in-process firmware emulator + emulated F/T."""
+
+    def __init__(self, params: BridgeParams = BridgeParams(),
+                 model: GripperModelParams = OBJECT) -> None:
+        self.emu = FirmwareEmulator(model)
+        self.writes: list[bytes] = []
+        self.port_up = True
+        self.ft_on = True
+        self.bridge = GripperBridge(params, self._write)
+        self.reader = LineReader(resync=False)
+        self.bridge.on_connected(0.0, 'emulated')
+        self.bridge.activate(0.0)
+
+    def _write(self, data: bytes) -> bool:
+        self.writes.append(data)
+        if self.port_up:
+            self.emu.receive(data)
+        return self.port_up
+
+    @property
+    def t(self) -> float:
+        return self.emu.time_s
+
+    def run(self, seconds: float) -> list[LineResult]:
+        out = []
+        for _ in range(int(round(seconds / self.emu.params.period))):
+            if self.ft_on:
+                for finger in (1, 2):
+                    self.bridge.on_ft_sample(finger, self.t, -self.emu.grasp_force, True)
+            for line, overflow in self.reader.feed(self.emu.tick()):
+                out.append(self.bridge.on_line(line, overflow, self.t))
+        return out
+
+    def voltages(self) -> list[float]:
+        return [command_voltage(w) for w in self.writes]
+
+
+def telemetry(results: list[LineResult]) -> list[LineResult]:
+    return [r for r in results if r.status is not None]
+
+
+def test_invalid_commands_are_rejected_counted_and_never_written() -> None:
+    rig = Rig()
+    rig.run(0.1)
+    n = len(rig.writes)
+    t = rig.t
+    bad = [dict(force=math.nan), dict(force=math.inf), dict(force=-math.inf),
+           dict(force=79.0), dict(force=-1e6), dict(force=5.0, timeout=math.nan),
+           dict(force=5.0, timeout=-0.1), dict(force=5.0, stamp=math.inf),
+           dict(force=5.0, stamp=t + 10.0)]
+    for kw in bad:
+        force = kw.pop('force')
+        assert not rig.bridge.set_grasp_force(force, t, **kw).accepted
+    rig.run(0.1)
+    assert set(rig.writes[n:]) == {b'T0.00\n'}  # the zero target never changed
+    diag = rig.bridge.diagnostics(rig.t)
+    assert diag.commands_rejected == len(bad) and diag.commands_accepted == 0
+    assert dict(diag.rejected_by_reason) == {'non_finite': 3, 'out_of_range': 2,
+                                             'bad_timeout': 2, 'bad_stamp': 1,
+                                             'future_stamp': 1}
+
+
+def test_hard_ceiling_whatever_the_command() -> None:
+    rig = Rig()
+    rig.run(0.05)
+    assert rig.bridge.set_grasp_force(70.0, rig.t).accepted  # expressible, beyond limits
+    results = rig.run(1.0)
+    assert rig.bridge.diagnostics(rig.t).targets_clipped == 1
+    ceiling_v = -45.0 / NPV
+    assert min(rig.voltages()) >= round(ceiling_v, 2) - 1e-9
+    motors = [r.motor for r in results if r.motor is not None]
+    assert max(m.force_target for m in motors) == 40.0
+    assert max(m.force_cmd for m in motors) <= 45.0
+
+
+def test_closed_loop_reaches_the_commanded_force_on_an_object() -> None:
+    rig = Rig()
+    rig.run(0.05)
+    assert rig.bridge.set_grasp_force(10.0, rig.t).accepted
+    results = telemetry(rig.run(1.5))
+    assert rig.emu.grasp_force == pytest.approx(10.0, abs=0.3)
+    last = results[-1]
+    assert last.motor.closed_loop and last.motor.bypass_reason == BypassReason.NONE
+    assert last.status.in_contact and last.status.measured_grasp_force == pytest.approx(
+        rig.emu.grasp_force, abs=0.05)
+    assert last.status.voltage_cmd == command_voltage(last.command)
+
+
+def test_stale_command_goes_to_safe_force() -> None:
+    params = BridgeParams(force_control=ForceControlParams(on_command_timeout='safe_force'))
+    rig = Rig(params)
+    rig.run(0.05)
+    assert rig.bridge.set_grasp_force(15.0, rig.t, stamp=rig.t, timeout=0.5).accepted
+    rig.run(0.45)
+    assert not rig.bridge.status(rig.t).command_expired
+    results = telemetry(rig.run(1.5))
+    assert results[-1].status.command_expired and results[-1].motor.force_target == 5.0
+    assert rig.emu.grasp_force == pytest.approx(5.0, abs=0.3)
+
+
+def test_default_timeout_applies_to_commands_without_one() -> None:
+    params = BridgeParams(force_control=ForceControlParams(on_command_timeout='zero'),
+                          command=CommandParams(default_timeout=0.2))
+    rig = Rig(params)
+    rig.run(0.05)
+    rig.bridge.set_grasp_force(10.0, rig.t)
+    results = telemetry(rig.run(1.0))
+    assert results[-1].status.command_expired and results[-1].motor.force_target == 0.0
+
+
+def test_stale_ft_bypasses_then_fault_limits_to_safe_force() -> None:
+    rig = Rig()
+    rig.run(0.05)
+    rig.bridge.set_grasp_force(15.0, rig.t)
+    rig.run(1.0)
+    rig.ft_on = False
+    results = telemetry(rig.run(0.05))
+    reasons = [r.motor.bypass_reason for r in results]
+    assert reasons[0] == BypassReason.NONE and reasons[-1] == BypassReason.FT_STALE
+    assert not results[-1].status.ft_fresh and math.isnan(results[-1].status.measured_grasp_force)
+    results = telemetry(rig.run(0.1))
+    assert results[-1].motor.force_target == 5.0  # ft_fault: safe_hold_force
+    assert results[-1].command == b'T-1.28\n'  # open loop 5 N = −1.2766 V
+
+
+def test_link_stale_disarms_writes_safe_voltage_and_needs_explicit_rearm() -> None:
+    rig = Rig()
+    rig.run(0.05)
+    rig.bridge.set_grasp_force(10.0, rig.t)
+    rig.run(1.0)
+    assert rig.voltages()[-1] < -2.0
+    t_last = rig.t
+    assert rig.bridge.check_watchdog(t_last + 0.01).state == LinkState.OK
+    rig.emu.silence(0.5)
+    n = len(rig.writes)
+    result = rig.bridge.check_watchdog(t_last + 0.025)
+    assert result.state == LinkState.STALE and not result.reconnect
+    assert rig.writes[n:] == [b'T0.00\n'] and rig.emu.target_voltage_v == 0.0
+    status = rig.bridge.status(t_last + 0.025)
+    assert not status.armed and status.safe_state and not status.link_ok
+    fault = rig.bridge.check_watchdog(t_last + 0.3)
+    assert fault.state == LinkState.FAULT and fault.reconnect
+    assert not rig.bridge.check_watchdog(t_last + 0.31).reconnect  # once per fault
+    rig.run(1.0)  # telemetry resumes: the safe voltage is written on every line
+    assert set(rig.writes[n:]) == {b'T0.00\n'}
+    refused = rig.bridge.set_grasp_force(10.0, rig.t)
+    assert not refused.accepted and 'armed' in refused.reason
+    rig.run(0.1)
+    assert set(rig.writes[n:]) == {b'T0.00\n'}
+    assert rig.bridge.arm(rig.t).accepted
+    rig.run(0.1)
+    assert set(rig.writes[n:]) == {b'T0.00\n'}  # arming cleared the old 10 N target
+    assert rig.bridge.set_grasp_force(10.0, rig.t).accepted
+    rig.run(0.5)
+    assert rig.voltages()[-1] < -2.0
+
+
+def test_reconnect_writes_safe_voltage_invalidates_homing_and_stays_disarmed() -> None:
+    rig = Rig(model=GripperModelParams())
+    rig.run(0.05)
+    rig.bridge.start_homing(rig.t)
+    rig.run(6.0)
+    assert rig.bridge.status(rig.t).homed
+    rig.bridge.set_grasp_force(10.0, rig.t)
+    rig.run(0.2)
+    rig.port_up = False
+    rig.bridge.on_link_lost(rig.t, '/dev/ttyACM0: device disconnected')
+    status = rig.bridge.status(rig.t)
+    assert not status.armed and not status.link_ok and not status.homed
+    assert rig.bridge.check_watchdog(rig.t).state == LinkState.DOWN
+    rig.port_up = True
+    n = len(rig.writes)
+    rig.bridge.on_connected(rig.t + 0.5, '/dev/ttyACM0')
+    assert rig.writes[n:] == [b'T0.00\n']
+    rig.run(0.2)
+    status = rig.bridge.status(rig.t)
+    assert status.reconnect_count == 1 and status.link_ok and not status.armed
+    assert not status.homed and math.isnan(status.opening)
+    assert set(rig.writes[n:]) == {b'T0.00\n'}
+    assert not rig.bridge.set_grasp_force(10.0, rig.t).accepted
+
+
+def test_firmware_restart_after_telemetry_disarms_but_boot_banner_does_not() -> None:
+    rig = Rig()
+    rig.run(0.05)  # includes the boot banner before the first angle line
+    assert rig.bridge.status(rig.t).armed
+    rig.bridge.set_grasp_force(10.0, rig.t)
+    rig.run(0.5)
+    rig.emu.restart(silence_s=0.004)
+    events = [r.event for r in rig.run(0.1) if r.event]
+    assert events == ['firmware_restart']
+    status = rig.bridge.status(rig.t)
+    assert not status.armed and status.safe_state and rig.emu.target_voltage_v == 0.0
+    assert rig.bridge.diagnostics(rig.t).firmware_restarts == 1
+
+
+def test_deactivate_writes_safe_voltage_first_then_nothing() -> None:
+    rig = Rig()
+    rig.run(0.05)
+    rig.bridge.set_grasp_force(10.0, rig.t)
+    rig.run(0.5)
+    n = len(rig.writes)
+    assert rig.bridge.deactivate(rig.t)
+    assert rig.writes[n:] == [b'T0.00\n']
+    rig.run(0.1)
+    assert len(rig.writes) == n + 1 and rig.emu.target_voltage_v == 0.0
+    assert rig.bridge.check_watchdog(rig.t + 1.0).state == LinkState.INACTIVE
+
+
+def test_stop_writes_safe_voltage_now_until_next_command() -> None:
+    rig = Rig()
+    rig.run(0.05)
+    rig.bridge.set_grasp_force(10.0, rig.t)
+    rig.run(0.5)
+    n = len(rig.writes)
+    assert rig.bridge.stop(rig.t)
+    assert rig.writes[n:] == [b'T0.00\n']
+    rig.run(0.1)
+    assert set(rig.writes[n:]) == {b'T0.00\n'}
+    status = rig.bridge.status(rig.t)
+    assert status.armed and status.safe_state
+    rig.bridge.set_grasp_force(10.0, rig.t)
+    rig.run(0.5)
+    assert rig.voltages()[-1] < -2.0
+
+
+def test_write_failures_are_counted() -> None:
+    rig = Rig()
+    rig.run(0.05)
+    rig.port_up = False
+    rig.run(0.02)
+    assert rig.bridge.diagnostics(rig.t).write_failures >= 9
+
+
+def test_live_parameter_swap_between_lines() -> None:
+    rig = Rig()
+    rig.run(0.05)
+    rig.bridge.set_grasp_force(10.0, rig.t)
+    rig.run(1.0)
+    new = dataclasses.replace(rig.bridge.params, force_control=ForceControlParams(
+        max_grasp_force=6.0, safe_hold_force=5.0))
+    new.validate()
+    rig.bridge.set_params(new)
+    results = telemetry(rig.run(1.0))
+    assert results[-1].motor.force_target == 6.0
+    assert rig.emu.grasp_force == pytest.approx(6.0, abs=0.3)
+
+
+def test_bridge_params_validation_and_flat_round_trip() -> None:
+    p = BridgeParams()
+    p.validate()
+    flat = flatten(p)
+    assert flat['force_control.kp'] == 2.0 and flat['link.stale_after'] == 0.020
+    assert flat['actuator.newton_per_volt'] == NPV and 'observer.ki' in flat
+    assert from_flat(BridgeParams, flat) == p
+    with pytest.raises(ParameterError, match='homing.voltage'):
+        from_flat(BridgeParams, {'homing.voltage': 12.0})
+    with pytest.raises(ParameterError, match='fault_after'):
+        from_flat(BridgeParams, {'link.fault_after': 0.01})
+
+
+def test_every_reconnection_disarms_even_after_activation_while_down() -> None:
+    rig = Rig()
+    rig.run(0.05)
+    rig.bridge.on_link_lost(rig.t, 'port gone')
+    rig.bridge.deactivate(rig.t)
+    rig.bridge.activate(rig.t)  # operator re-activates while the port is still gone
+    rig.bridge.on_connected(rig.t + 0.5, 'emulated')
+    rig.run(0.1)
+    status = rig.bridge.status(rig.t)
+    assert status.link_ok and not status.armed and status.safe_state
+
+
+def test_reset_after_a_backwards_clock_jump_keeps_arming_and_homing() -> None:
+    rig = Rig()
+    rig.run(0.05)
+    rig.bridge.set_grasp_force(10.0, rig.t)
+    rig.run(1.0)
+    jumped = 0.0  # e.g. a replay or simulation restarted /clock
+    rig.bridge.reset(jumped)
+    assert rig.bridge.check_watchdog(jumped + 0.01).state == LinkState.OK
+    status = rig.bridge.status(jumped)
+    assert status.armed and not status.safe_state
+    assert rig.bridge.diagnostics(jumped).command_age_s >= 0.0
