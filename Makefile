@@ -14,6 +14,7 @@ BUILD_INPUTS := $(shell find src -type f \( -name package.xml -o -name setup.py 
 	-o -name CMakeLists.txt -o -name '*.msg' -o -name '*.srv' -o -name '*.action' \
 	-o -path '*/resource/*' -o -path '*/config/*' -o -path '*/launch/*' \) 2>/dev/null)
 PYTEST_ARGS ?=
+DEMO_ARGS ?=
 
 .PHONY: help setup test demo bench bags clean lock
 
@@ -41,7 +42,7 @@ test: setup
 	@$(RUN) $(PY) -m pytest $(PYTEST_ARGS)
 
 demo: setup
-	@$(RUN) $(PY) tools/demo.py
+	@$(RUN) $(PY) -m slip_control.demo $(DEMO_ARGS)
 
 bench: setup
 	@for b in bench/bench_*.py; do echo "=== $$b"; $(RUN) $(PY) $$b --quick; done

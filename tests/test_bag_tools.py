@@ -100,7 +100,7 @@ def test_record_in_process_then_replay_in_another_process(ros_context, ros_env,
     got_status: list[GripperStatus] = []
     got_cmd: list[GraspForceCommand] = []
     clocks: list[Clock] = []
-    node.create_subscription(GripperStatus, 'gripper/status', got_status.append, SENSOR_SUB)
+    node.create_subscription(GripperStatus, 'gripper/status', got_status.append, SENSOR_PUB)
     node.create_subscription(GraspForceCommand, 'gripper/grasp_force_cmd', got_cmd.append,
                              SENSOR_SUB)
     node.create_subscription(Clock, '/clock', clocks.append, 10)

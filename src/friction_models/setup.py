@@ -25,6 +25,7 @@ setup(
     entry_points={
         'console_scripts': [
             # '<executable> = friction_models.<module>:main',
+            'friction_models_cli = friction_models.cli:main',
         ],
     },
 )

@@ -30,6 +30,7 @@ setup(
             'run_graph = slip_control.run_graph:main',
             'slip_cli = slip_control.slip_cli:main',
             'slip_analyze = slip_control.analyze:main',
+            'slip_demo = slip_control.demo:main',
         ],
     },
 )

@@ -125,6 +125,10 @@ class BagReplayNode(Node):
                     pub.get_subscription_count() > 0 for pub in self._pubs.values()):
                 if self._stop.wait(0.02):
                     return
+            # The writer side matches first; give the readers a moment to match back, or
+            # the first samples are lost for best-effort subscribers.
+            if self._stop.wait(min(0.5, self.cfg.start_delay)):
+                return
             wall0 = time.monotonic()
             bag0: int | None = None
             for topic, msgtype, stamp, data in iter_raw(self.cfg.bag):
