@@ -118,13 +118,13 @@ def main(argv: list[str] | None = None) -> int:
     started = time.monotonic()
     graph_path = _prefix('slip_control') / 'share' / 'slip_control' / 'config' / \
         'sim_cell.graph.yaml'
-    sim_args = ['-p', f'realtime_factor:={ns.realtime_factor!r}']
+    sim_values: dict[str, Any] = {'realtime_factor': float(ns.realtime_factor)}
     if ns.preset:
-        sim_args += ['-p', f'preset:={ns.preset}']
+        sim_values['preset'] = ns.preset
     try:
-        runner = GraphRunner(load_graph(graph_path), out / 'logs', extra_args={
-            'sim_gripper': sim_args,
-            'experiment_runner': ['-p', f'recording.directory:={out}']})
+        runner = GraphRunner(load_graph(graph_path), out / 'logs', overrides={
+            'sim_gripper': sim_values,
+            'experiment_runner': {'recording.directory': str(out)}})
     except GraphError as exc:
         print(f'slip_demo: error: {exc}', file=sys.stderr)
         return 2

@@ -132,12 +132,17 @@ class GraphRunner:
     Args:
         graph: The nodes to run.
         log_dir: Each node's output goes to ``<log_dir>/<name>.log``.
-        extra_args: Per-node extra ``--ros-args`` (``{'sim_gripper': ['-p', 'seed:=2']}``).
+        extra_args: Per-node extra ``--ros-args`` (remappings and the like).
+        overrides: Per-node parameter values (``{'sim_gripper': {'seed': 2}}``), written to a
+            parameter file keyed by the node name and passed last. (``-p name:=value`` is a
+            ``/**`` wildcard, which node-specific keys of the packages' YAML files take
+            precedence over, so it cannot override them.)
         stop_timeout_s: Time between SIGINT and SIGKILL.
     """
 
     def __init__(self, graph: GraphSpec, log_dir: Path | str,
                  extra_args: dict[str, Sequence[str]] | None = None,
+                 overrides: dict[str, dict[str, Any]] | None = None,
                  stop_timeout_s: float = 8.0, env: dict[str, str] | None = None,
                  check_localhost: bool = True) -> None:
         if check_localhost:
@@ -148,7 +153,11 @@ class GraphRunner:
         self.stop_timeout_s = stop_timeout_s
         self._env = dict(env if env is not None else os.environ)
         self._env.setdefault('PYTHONUNBUFFERED', '1')
-        self._extra = extra_args or {}
+        self._extra = {name: list(args) for name, args in (extra_args or {}).items()}
+        for name, values in (overrides or {}).items():
+            path = self.log_dir / f'{name}.overrides.yaml'
+            path.write_text(yaml.safe_dump({name: {'ros__parameters': dict(values)}}))
+            self._extra.setdefault(name, []).extend(['--params-file', str(path)])
         self.procs: dict[str, subprocess.Popen[bytes]] = {}
         self._logs: dict[str, Any] = {}
 

@@ -2,13 +2,17 @@
 
 A best-effort subscriber matches a reliable publisher, never the reverse, so drivers always
 publish reliable and high-rate consumers subscribe best effort.
+
+Deviation from the spec's table: SENSOR_PUB keeps the last 100 samples, not 10. With reliable
+delivery the writer's history is the only slack a slow reader has; 10 samples are 20 ms at
+500 Hz, and a Python recorder or estimator on a loaded 2-core machine lost data with it.
 """
 from __future__ import annotations
 
 from rclpy.qos import (DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy)
 from rclpy.qos_overriding_options import QoSOverridingOptions
 
-SENSOR_PUB = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
+SENSOR_PUB = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100,
                         reliability=ReliabilityPolicy.RELIABLE,
                         durability=DurabilityPolicy.VOLATILE)
 SENSOR_SUB = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=5,
