@@ -18,7 +18,7 @@ from typing import Any, Iterable, Iterator
 from rosbags.highlevel import AnyReader
 from rosbags.interfaces import (Qos, QosDurability, QosHistory, QosLiveliness, QosReliability,
                                 QosTime)
-from rosbags.rosbag2 import StoragePlugin, Writer
+from rosbags.rosbag2 import CompressionFormat, CompressionMode, StoragePlugin, Writer
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from rosbags.typesys.store import Typestore
 
@@ -72,15 +72,20 @@ class BagWriter:
     Args:
         path: Bag directory to create.
         typestore: Types for message definitions (default: Jazzy + slip_msgs).
+        compress: zstd chunk compression inside the MCAP file (what rosbag2's MCAP plugin
+            does with ``storage_preset_profile: zstd_fast``; ≈ 4× smaller for our topics).
     """
 
-    def __init__(self, path: Path | str, typestore: Typestore | None = None) -> None:
+    def __init__(self, path: Path | str, typestore: Typestore | None = None,
+                 compress: bool = True) -> None:
         self.path = Path(path)
         if self.path.exists():
             raise BagError(f'bag path {self.path} already exists; refusing to overwrite')
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self.typestore = typestore or slip_typestore()
         self._writer = Writer(self.path, version=9, storage_plugin=StoragePlugin.MCAP)
+        if compress:
+            self._writer.set_compression(CompressionMode.STORAGE, CompressionFormat.ZSTD)
         self._writer.open()
         self._connections: dict[str, Any] = {}
         self.message_count = 0
