@@ -14,6 +14,10 @@ Latency per telemetry line = ``time.monotonic()`` right after the command write 
 the line's arrival stamp (taken by the reader when the read returned). A tick is *missed*
 when its command was not written before the next line's period (latency > 2 ms) or no
 command was written for it. Prints a table; never asserts.
+
+``--node`` runs the same measurement through the real ``gripper_driver`` lifecycle node in this
+process (rclpy, publishing from the reader thread, watchdog, embedded Net F/T clients on
+127.0.0.6/127.0.0.5 served by the emulator child process).
 """
 from __future__ import annotations
 
@@ -43,13 +47,15 @@ PERIOD_S = 0.002
 WARMUP_S = 1.0
 
 
-def _start_emulator(link: str, seconds: float,
-                    with_ft: bool) -> tuple[subprocess.Popen, list[tuple[str, int]]]:
+def _start_emulator(link: str, seconds: float, with_ft: bool, boxes_at: list[str] | None = None
+                    ) -> tuple[subprocess.Popen, list[tuple[str, int]]]:
     cmd = [sys.executable, '-m', 'slip_gripper_driver.core.firmware_emulator', '--link', link,
            '--object-width', '0.03', '--initial-opening', '0.031', '--duration', f'{seconds}',
            '--stats-json']
     if with_ft:
         cmd += ['--netft', '127.0.0.1:0', '--netft', '127.0.0.1:0']
+    for box in boxes_at or []:
+        cmd += ['--netft', box]
     env = dict(os.environ)
     env['PYTHONPATH'] = _SRC + os.pathsep + env.get('PYTHONPATH', '')
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, text=True, env=env)
@@ -164,6 +170,131 @@ def run(duration_s: float, with_ft: bool) -> None:
           f'link callback errors {link.stats().callback_errors}')
 
 
+def _free_port(host: str) -> int:
+    import socket
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
+        probe.bind((host, 0))
+        return probe.getsockname()[1]
+
+
+def run_node(duration_s: float, with_ft: bool) -> None:
+    """Same measurement through the real ``gripper_driver`` lifecycle node (in this process).
+
+    The node runs as ``main`` runs it (multi-threaded executor, parameters, publishers): every
+    line is also published as ``gripper/status`` and ``gripper/motor_command`` from the reader
+    thread, the watchdog runs every 5 ms, the boxes publish ``finger_k/ft/wrench``. Latency =
+    node clock in the result callback (called right after the command was written) − the line's
+    arrival stamp.
+    """
+    import rclpy
+    from rclpy.context import Context
+    from rclpy.executors import MultiThreadedExecutor
+    from rclpy.lifecycle import TransitionCallbackReturn
+    from rclpy.parameter import Parameter
+    from rclpy.signals import SignalHandlerOptions
+    from std_srvs.srv import Trigger
+
+    from slip_gripper_driver.gripper_driver_node import GripperDriverNode
+
+    tmp = tempfile.mkdtemp(prefix='bench_gripper_node_')
+    port = os.path.join(tmp, 'gripper')
+    box_port = _free_port('127.0.0.6')
+    hosts = ('127.0.0.6', '127.0.0.5')
+    cmd_boxes = [f'{h}:{box_port}' for h in hosts] if with_ft else []
+    proc, _ = _start_emulator(port, duration_s + WARMUP_S + 6.0, False, cmd_boxes)
+    context = Context()
+    rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)
+    overrides = {'autostart': False, 'serial.port': port,
+                 'ft.mode': 'embedded' if with_ft else 'topic',
+                 'ft.finger_1.address': hosts[0], 'ft.finger_2.address': hosts[1],
+                 'ft.port': box_port, 'ft.read_config': False, 'ft.counts_per_force': 1.0e6,
+                 'ft.counts_per_torque': 1.0e6}
+    node = GripperDriverNode(context=context, parameter_overrides=[
+        Parameter(k, value=v) for k, v in overrides.items()])
+    n_max = int((duration_s + WARMUP_S + 4.0) / PERIOD_S) + 1000
+    arrival = np.full(n_max, np.nan)
+    done = np.full(n_max, np.nan)
+    count = [0]
+    publish_us: list[float] = []
+    original = node._on_result  # noqa: SLF001 - the bench wraps the node's result callback
+
+    def on_result(result: object) -> None:
+        t_done = node.now()
+        if result.kind == LineKind.TELEMETRY:  # type: ignore[attr-defined]
+            i = count[0]
+            if i < n_max:
+                arrival[i] = result.stamp  # type: ignore[attr-defined]
+                if result.written:  # type: ignore[attr-defined]
+                    done[i] = t_done
+            count[0] = i + 1
+        t0 = time.perf_counter()
+        original(result)
+        publish_us.append((time.perf_counter() - t0) * 1e6)
+
+    node._on_result = on_result  # noqa: SLF001 - before configure: the core binds it there
+    executor = MultiThreadedExecutor(context=context)
+    executor.add_node(node)
+    stop = threading.Event()
+
+    def spin() -> None:
+        while not stop.is_set():
+            executor.spin_once(timeout_sec=0.05)
+    spinner = threading.Thread(target=spin, daemon=True)
+    spinner.start()
+    try:
+        ok = TransitionCallbackReturn.SUCCESS
+        if node.trigger_configure() != ok or node.trigger_activate() != ok:
+            raise RuntimeError(f'gripper_driver did not start: {node.last_error}')
+        time.sleep(0.5)
+        if with_ft:
+            reply = node._srv_bias(Trigger.Request(), Trigger.Response())  # noqa: SLF001
+            print(f'bias: {reply.message}')
+        node.core.bridge.set_grasp_force(10.0, node.now())
+        time.sleep(WARMUP_S)
+        first = count[0]
+        cpu0, wall0 = time.process_time(), time.monotonic()
+        time.sleep(duration_s)
+        last = count[0]
+        cpu1, wall1 = time.process_time(), time.monotonic()
+        status = node.core.bridge.status(node.now())
+        diag = node.core.bridge.diagnostics(node.now())
+    finally:
+        from slip_gripper_driver.common.node_main import shutdown_lifecycle
+        shutdown_lifecycle(node)
+        stop.set()
+        spinner.join(2.0)
+        executor.shutdown()
+        node.destroy_node()
+        rclpy.try_shutdown(context=context)
+    out, _ = proc.communicate(timeout=30.0)
+    emu = json.loads(out.strip().splitlines()[-1]) if out.strip() else {}
+    a, w = arrival[first:last], done[first:last]
+    lat = (w - a) * 1e6
+    unanswered = int(np.isnan(lat).sum())
+    lat = lat[~np.isnan(lat)]
+    late = int((lat > PERIOD_S * 1e6).sum())
+    gaps = np.diff(a) * 1e3
+    pub = np.array(publish_us[-(last - first):]) if publish_us else np.zeros(1)
+    print(f'gripper loop THROUGH THE NODE: {duration_s:.0f} s measured '
+          f'({"closed loop at 10 N, 2 embedded Net F/T clients" if with_ft else "no F/T"})')
+    print(f'  telemetry lines            {a.size:10d}   '
+          f'(≈ {int(round((wall1 - wall0) / PERIOD_S))} expected)')
+    print(f'  latency line → T written   p50 {np.percentile(lat, 50):7.1f} µs   '
+          f'p99 {np.percentile(lat, 99):7.1f} µs   max {lat.max():7.1f} µs')
+    print(f'  missed ticks               {late + unanswered:10d}   '
+          f'(latency > 2 ms: {late}, no command: {unanswered})')
+    print(f'  arrival gaps > 3 ms        {int((gaps > 3.0).sum()):10d}   '
+          f'(max gap {gaps.max():.2f} ms; emulator late ticks {emu.get("late_ticks", "?")})')
+    print(f'  status+motor publish       p50 {np.percentile(pub, 50):7.1f} µs   '
+          f'p99 {np.percentile(pub, 99):7.1f} µs (after the write, same thread)')
+    print(f'  host CPU                   {100 * (cpu1 - cpu0) / (wall1 - wall0):9.1f} %  '
+          f'of one core')
+    print(f'  grasp force                {status.measured_grasp_force:10.2f} N   '
+          f'(target 10 N, closed loop: {diag.closed_loop})')
+    print(f'  stale events {diag.stale_events}, reconnects {diag.reconnects}, '
+          f'armed at the end: {diag.armed}')
+
+
 def main() -> int:
     """Parse arguments and run."""
     parser = argparse.ArgumentParser(description=__doc__.split('\n')[0])
@@ -172,12 +303,22 @@ def main() -> int:
     parser.add_argument('--no-ft', action='store_true', help='without the Net F/T emulators')
     parser.add_argument('--switch-interval-us', type=float, default=0.0,
                         help='sys.setswitchinterval for this process [µs]; 0 = Python default '
-                             '(5000 µs): the longest a busy Python thread can delay the reader')
+                             '(5000 µs) for the core run, the node\'s 500 µs with --node')
+    parser.add_argument('--node', action='store_true',
+                        help='go through the real gripper_driver lifecycle node (rclpy, '
+                             'publishers, watchdog) instead of the bare core')
     args = parser.parse_args()
     if args.switch_interval_us > 0.0:
         sys.setswitchinterval(args.switch_interval_us * 1e-6)
+    elif args.node:
+        from slip_gripper_driver.gripper_driver_node import SWITCH_INTERVAL_S
+        sys.setswitchinterval(SWITCH_INTERVAL_S)
     print(f'GIL switch interval {sys.getswitchinterval() * 1e6:.0f} µs')
-    run(5.0 if args.quick else args.duration, not args.no_ft)
+    duration = 5.0 if args.quick else args.duration
+    if args.node:
+        run_node(duration, not args.no_ft)
+    else:
+        run(duration, not args.no_ft)
     return 0
 
 

@@ -24,7 +24,11 @@ setup(
     extras_require={'test': ['pytest']},
     entry_points={
         'console_scripts': [
-            # '<executable> = slip_gripper_driver.<module>:main',
+            'gripper_driver = slip_gripper_driver.gripper_driver_node:main',
+            'netft_driver = slip_gripper_driver.netft_driver_node:main',
+            'gripper_firmware_emulator = slip_gripper_driver.core.firmware_emulator:main',
+            'netft_emulator = slip_gripper_driver.core.netft_emulator:main',
+            'force_tracking_test = slip_gripper_driver.force_tracking_test:main',
         ],
     },
 )

@@ -149,7 +149,25 @@ def test_stale_ft_bypasses_then_fault_limits_to_safe_force() -> None:
     assert results[-1].command == b'T-1.28\n'  # open loop 5 N = −1.2766 V
 
 
-def test_link_stale_disarms_writes_safe_voltage_and_needs_explicit_rearm() -> None:
+def test_short_stale_gap_writes_safe_voltage_then_resumes_armed() -> None:
+    rig = Rig()
+    rig.run(0.05)
+    rig.bridge.set_grasp_force(10.0, rig.t)
+    rig.run(1.0)
+    t_last = rig.t
+    rig.emu.silence(0.1)  # longer than link.stale_after (20 ms), shorter than the fault
+    n = len(rig.writes)
+    result = rig.bridge.check_watchdog(t_last + 0.025)
+    assert result.state == LinkState.STALE and not result.reconnect
+    assert rig.writes[n:] == [b'T0.00\n'] and rig.emu.target_voltage_v == 0.0
+    status = rig.bridge.status(t_last + 0.025)
+    assert status.armed and status.safe_state and not status.link_ok
+    rig.run(1.0)  # telemetry resumes: the loop is clocked by it and squeezes again
+    assert rig.voltages()[-1] < -2.0
+    assert not rig.bridge.status(rig.t).safe_state
+
+
+def test_link_fault_disarms_writes_safe_voltage_and_needs_explicit_rearm() -> None:
     rig = Rig()
     rig.run(0.05)
     rig.bridge.set_grasp_force(10.0, rig.t)
@@ -163,8 +181,9 @@ def test_link_stale_disarms_writes_safe_voltage_and_needs_explicit_rearm() -> No
     assert result.state == LinkState.STALE and not result.reconnect
     assert rig.writes[n:] == [b'T0.00\n'] and rig.emu.target_voltage_v == 0.0
     status = rig.bridge.status(t_last + 0.025)
-    assert not status.armed and status.safe_state and not status.link_ok
+    assert status.armed and status.safe_state and not status.link_ok
     fault = rig.bridge.check_watchdog(t_last + 0.3)
+    assert not rig.bridge.status(t_last + 0.3).armed
     assert fault.state == LinkState.FAULT and fault.reconnect
     assert not rig.bridge.check_watchdog(t_last + 0.31).reconnect  # once per fault
     rig.run(1.0)  # telemetry resumes: the safe voltage is written on every line

@@ -460,7 +460,7 @@ class GripperBridge:
     def check_watchdog(self, t: float) -> WatchdogResult:
         """Supervise telemetry; call from a timer (≤ 10 ms period) with the current time [s].
 
-        Writes the safe voltage and disarms once when the link goes stale; asks for a
+        Writes the safe voltage once when the link goes stale; disarms and asks for a
         reconnection once when it faults.
         """
         with self._lock:
@@ -476,11 +476,11 @@ class GripperBridge:
                 if reconnect:
                     self._fault_reported = True
                     self._link_faults += 1
-                    self._go_stale(reason)
+                    self._go_stale(reason, disarm=True)
                 return WatchdogResult(LinkState.FAULT, age, reconnect, reason)
             if age > p.stale_after:
                 reason = f'no telemetry for {age:.3f} s (stale after {p.stale_after:.3f} s)'
-                self._go_stale(reason)
+                self._go_stale(reason, disarm=False)
                 return WatchdogResult(LinkState.STALE, age, False, reason)
             return WatchdogResult(LinkState.OK, age, False, 'ok')
 
@@ -714,18 +714,27 @@ class GripperBridge:
         self._controller.reset()
         self._rate = _NAN
 
-    def _go_stale(self, reason: str) -> None:
+    def _go_stale(self, reason: str, disarm: bool) -> None:
+        """Write the safe voltage once when telemetry stops.
+
+        A stale link (no line for ``link.stale_after``) only gets the safe voltage: the loop is
+        clocked by telemetry, so it resumes with the next line. A fault (``link.fault_after``,
+        reconnection follows) also disarms: after a reconnect nothing is applied until
+        ``arm()``.
+        """
+        if disarm and (self._armed or self._homing.active):
+            self._enter_safe(reason)
+        elif self._homing.active:
+            self._homing.abort(reason)
         if self._stale_latched:
             return
         self._stale_latched = True
         self._stale_events += 1
-        if self._armed or self._homing.active:
-            self._enter_safe(reason)
         self._voltage_cmd = self._params.actuator.safe_voltage
         self._write(self._safe_command)
 
     def _safe(self) -> bool:
-        return not (self._active and self._armed) or self._stopped
+        return not (self._active and self._armed) or self._stopped or self._stale_latched
 
     def _line_age(self, t: float) -> float:
         ref = self._last_line_t

@@ -1,0 +1,640 @@
+# SPDX-License-Identifier: Apache-2.0
+"""``gripper_driver``: lifecycle node around `core.bridge.GripperDriverCore` (issue 5).
+
+The 500 Hz grasp-force loop runs on the serial reader thread inside the core and never crosses
+DDS: each telemetry line is parsed, the controller steps and ``T<volts>`` is written before the
+line's results are published from that same thread (rclpy publishing is thread-safe). The
+Net F/T boxes (``ft.mode: embedded``) feed the loop from their own reader threads; with
+``ft.mode: topic`` the loop consumes ``finger_k/ft/wrench`` from standalone ``netft_driver``s.
+
+Lifecycle: configure opens the port (FAILURE naming it) and starts both RDT streams (FAILURE
+naming the box); activate arms and starts the reader and the link watchdog (a 5 ms timer on
+the steady clock); deactivate, cleanup and shutdown write the safe voltage **first**. Link
+faults, reconnections and firmware restarts disarm: no force is applied until ``gripper/arm``.
+
+Spin with a multi-threaded executor (``main`` does): ``gripper/home`` and ``gripper/bias_ft``
+answer when the procedure has finished and run in their own callback group, so the watchdog
+keeps running meanwhile.
+"""
+from __future__ import annotations
+
+import math
+import sys
+import threading
+import time
+from typing import Any, Callable
+
+from geometry_msgs.msg import WrenchStamped
+from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
+from rclpy.clock import Clock, ClockType, JumpThreshold, TimeJump
+from rclpy.duration import Duration
+from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
+from sensor_msgs.msg import JointState
+from slip_msgs.msg import GraspForceCommand, GripperStatus, MotorCommand, TransformArray
+from std_srvs.srv import Trigger
+
+from slip_gripper_driver import ros_conv
+from slip_gripper_driver.common.diagnostics import DiagnosticsPublisher
+from slip_gripper_driver.common.node_main import run_node
+from slip_gripper_driver.common.params import ParameterBinding
+from slip_gripper_driver.common.qos import COMMAND, LATCHED, SENSOR_PUB, SENSOR_SUB, overridable
+from slip_gripper_driver.core.bridge import (BridgeDiagnostics, GripperDriverCore, LineResult,
+                                             LinkState)
+from slip_gripper_driver.core.force_control import BypassReason
+from slip_gripper_driver.core.frames import FrameParams, finger_transforms, static_transforms
+from slip_gripper_driver.core.monitors import Level, Report
+from slip_gripper_driver.core.netft import NetFTError
+from slip_gripper_driver.core.param_schema import ParameterError
+from slip_gripper_driver.core.transport import ByteStream, LinkError, open_stream
+from slip_gripper_driver.ft_channel import (FT_SUPERVISE_PERIOD_S, FtChannel, TopicFtInput,
+                                            run_bias, wrench_publisher)
+from slip_gripper_driver.node_params import GripperDriverParams
+
+#: Link watchdog period on the steady clock [s] (≤ 10 ms: stale detection ≤ 20 + 5 ms).
+WATCHDOG_PERIOD_S = 0.005
+#: While the link is not OK, status is published from the watchdog every n-th tick.
+DEGRADED_STATUS_EVERY = 4
+#: Nominal firmware telemetry rate [Hz] (hardware_protocols §1.1) and diagnostics tolerance.
+TELEMETRY_RATE_HZ = 500.0
+TELEMETRY_RATE_TOLERANCE = 0.1
+#: GIL switch interval for the driver process [s] (bench: keeps reader-thread latency low).
+SWITCH_INTERVAL_S = 5e-4
+
+SUCCESS = TransitionCallbackReturn.SUCCESS
+FAILURE = TransitionCallbackReturn.FAILURE
+
+
+class TaskDiagnostics(DiagnosticsPublisher):
+    """`DiagnosticsPublisher` with a hardware id per task (port for the link, IP per box)."""
+
+    def __init__(self, node: LifecycleNode, hardware_id: str = '', period_s: float = 1.0) -> None:
+        super().__init__(node, hardware_id, period_s)
+        self._ids: dict[str, str] = {}
+        self._prefix = f'{node.get_name()}: '
+
+    def add_task(self, name: str, task: Callable[[float], Report], hardware_id: str) -> None:
+        """Register ``task`` reported with ``hardware_id``."""
+        self._ids[self._prefix + name] = hardware_id
+        self.add(name, task)
+
+    def statuses(self) -> list[Any]:
+        """Every task's status with its own hardware id."""
+        out = super().statuses()
+        for status in out:
+            status.hardware_id = self._ids.get(status.name, self.hardware_id)
+        return out
+
+
+class GripperDriverNode(LifecycleNode):
+    """The gripper bridge node; see the module docstring.
+
+    Args:
+        node_name: Node name.
+        **kwargs: Passed to `rclpy.lifecycle.LifecycleNode` (``context``,
+            ``parameter_overrides``, ...).
+    """
+
+    def __init__(self, node_name: str = 'gripper_driver', **kwargs: Any) -> None:
+        super().__init__(node_name, **kwargs)
+        self.params = ParameterBinding(self, GripperDriverParams)
+        self.frame_params = ParameterBinding(self, FrameParams, prefix='frames.')
+        self.params.on_change(self._on_params)
+        self.core: GripperDriverCore | None = None
+        self.channels: list[FtChannel] = []
+        self.topic_inputs: list[TopicFtInput] = []
+        self.last_error = ''
+        self._cfg = GripperDriverParams()
+        self._frames = FrameParams()
+        self._publishing = False
+        self._lines = 0
+        self._ticks = 0
+        self._last_state = LinkState.INACTIVE
+        self._rate_ref: tuple[float, int] | None = None
+        self._homing_finished = threading.Event()
+        self._entities: list[Any] = []
+        self._timers: list[Any] = []
+        self._watchdog: Any = None
+        self._diag: TaskDiagnostics | None = None
+        self._pubs: dict[str, Any] = {}
+        self._bias_clients: list[Any] = []
+        self._long_group = MutuallyExclusiveCallbackGroup()
+        self._watchdog_group = MutuallyExclusiveCallbackGroup()
+        self._client_group = ReentrantCallbackGroup()
+        self._steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self._jump = self.get_clock().create_jump_callback(
+            JumpThreshold(min_forward=None, min_backward=Duration(nanoseconds=-1_000_000),
+                          on_clock_change=True), post_callback=self._on_clock_jump)
+
+    # ------------------------------------------------------------------ helpers
+    def now(self) -> float:
+        """Node clock [s] (sim time under ``use_sim_time``): the stamp of every sample."""
+        return self.get_clock().now().nanoseconds * 1e-9
+
+    def _fail(self, message: str) -> TransitionCallbackReturn:
+        self.last_error = message
+        self.get_logger().error(message)
+        self._release(self.now())
+        return FAILURE
+
+    def _active(self) -> bool:
+        return self.core is not None and self._publishing
+
+    # ------------------------------------------------------------------ lifecycle
+    def on_configure(self, state: LifecycleState) -> TransitionCallbackReturn:
+        """Validate parameters, open the port, start both RDT streams, create endpoints."""
+        del state
+        self.last_error = ''
+        try:
+            cfg = self.params.load()
+            self._frames = self.frame_params.load()
+        except ParameterError as exc:
+            return self._fail(f'invalid parameters: {exc}')
+        self._cfg = cfg
+        core = GripperDriverCore(cfg.serial.port, cfg.bridge(), clock=self.now,
+                                 baudrate=cfg.serial.baudrate, reconnect=cfg.reconnect,
+                                 on_result=self._on_result, on_event=self._on_event,
+                                 opener=_opener(cfg.link.fault_after))
+        try:
+            core.configure()
+        except LinkError as exc:
+            return self._fail(f'cannot open the gripper serial port: {exc}')
+        self.core = core
+        if cfg.ft.mode == 'embedded':
+            boxes = ((1, cfg.ft.finger_1.address), (2, cfg.ft.finger_2.address))
+            for finger, address in boxes:
+                channel = FtChannel(finger, address, cfg.ft, cfg.bias, clock=self.now,
+                                    sink=self._ft_sink,
+                                    restart_initial_s=cfg.reconnect.initial_delay,
+                                    restart_max_s=cfg.reconnect.max_delay)
+                try:
+                    channel.open()
+                except NetFTError as exc:
+                    return self._fail(f'finger {finger} Net F/T: {exc}')
+                self.channels.append(channel)
+        self._create_endpoints(cfg)
+        self.get_logger().info(
+            f'configured: {cfg.serial.port}, F/T {cfg.ft.mode}'
+            + (''.join(f', finger {c.finger} at {c.name}' for c in self.channels)))
+        return SUCCESS
+
+    def on_activate(self, state: LifecycleState) -> TransitionCallbackReturn:
+        """Arm, start the 500 Hz reader and the watchdog, publish the static frames."""
+        assert self.core is not None
+        t = self.now()
+        self._lines = 0
+        self._publishing = True
+        for channel in self.channels:
+            channel.publishing = True
+        try:
+            self.core.activate(t)
+        except LinkError as exc:
+            self._publishing = False
+            for channel in self.channels:
+                channel.publishing = False
+            self.last_error = f'cannot activate: {exc}'
+            self.get_logger().error(self.last_error)
+            return FAILURE
+        self._pubs['static_frames'].publish(
+            ros_conv.transforms_msg(t, static_transforms(self._frames)))
+        self._last_state = LinkState.INACTIVE
+        self._watchdog = self.create_timer(WATCHDOG_PERIOD_S, self._on_watchdog,
+                                           callback_group=self._watchdog_group,
+                                           clock=self._steady)
+        if self._cfg.bias.on_activate:
+            self._start_background_bias(t)
+        self.get_logger().info(f'active: armed on {self.core.port}')
+        return super().on_activate(state)
+
+    def on_deactivate(self, state: LifecycleState) -> TransitionCallbackReturn:
+        """Safe voltage first, then stop the reader thread, the watchdog and publishing."""
+        if self.core is not None:
+            written = self.core.deactivate(self.now())
+            if written:
+                self.get_logger().info(f'{self.core.port}: safe voltage written; inactive')
+            else:
+                self.get_logger().error(f'{self.core.port}: safe voltage could not be written '
+                                        'on deactivate (link down)')
+        self._publishing = False
+        for channel in self.channels:
+            channel.publishing = False
+        if self._watchdog is not None:
+            self.destroy_timer(self._watchdog)
+            self._watchdog = None
+        return super().on_deactivate(state)
+
+    def on_cleanup(self, state: LifecycleState) -> TransitionCallbackReturn:
+        """Safe voltage (if still possible), stop the RDT streams, close everything."""
+        del state
+        self._release(self.now())
+        return SUCCESS
+
+    def on_shutdown(self, state: LifecycleState) -> TransitionCallbackReturn:
+        """Same as cleanup, from any state (SIGINT/SIGTERM through `run_node`)."""
+        del state
+        self._release(self.now())
+        return SUCCESS
+
+    def on_error(self, state: LifecycleState) -> TransitionCallbackReturn:
+        """A transition raised: make the gripper safe and return to unconfigured."""
+        del state
+        self._release(self.now())
+        return SUCCESS
+
+    def _release(self, t: float) -> None:
+        """Safe voltage first, then streams, port and ROS endpoints (idempotent)."""
+        self._publishing = False
+        if self.core is not None:
+            self.core.shutdown(t)
+            self.core = None
+        for channel in self.channels:
+            channel.close()
+        self.channels = []
+        self._destroy_endpoints()
+
+    # ------------------------------------------------------------------ endpoints
+    def _create_endpoints(self, cfg: GripperDriverParams) -> None:
+        opts = overridable()
+        pub = self.create_publisher
+        self._pubs = {
+            'status': pub(GripperStatus, 'gripper/status', SENSOR_PUB,
+                          qos_overriding_options=opts),
+            'motor': pub(MotorCommand, 'gripper/motor_command', SENSOR_PUB,
+                         qos_overriding_options=opts),
+            'joints': pub(JointState, 'gripper/joint_states', SENSOR_PUB,
+                          qos_overriding_options=opts),
+            'static_frames': pub(TransformArray, 'gripper/static_frames', LATCHED,
+                                 qos_overriding_options=opts),
+            'finger_frames': pub(TransformArray, 'gripper/finger_frames', SENSOR_PUB,
+                                 qos_overriding_options=opts),
+        }
+        entities: list[Any] = list(self._pubs.values())
+        for channel in self.channels:
+            k = channel.finger
+            frame = self._frames.frame_id(f'ft_sensor_{k}')
+            wrench = pub(WrenchStamped, f'finger_{k}/ft/wrench', SENSOR_PUB,
+                         qos_overriding_options=opts)
+            raw = pub(WrenchStamped, f'finger_{k}/ft/raw', SENSOR_PUB,
+                      qos_overriding_options=opts)
+            channel.publish_wrench = wrench_publisher(wrench, frame)
+            channel.publish_raw = wrench_publisher(raw, frame)
+            entities += [wrench, raw]
+        self.topic_inputs = []
+        self._bias_clients = []
+        if cfg.ft.mode == 'topic':
+            for k in (1, 2):
+                topic = f'finger_{k}/ft/wrench'
+                source = TopicFtInput(k, topic, cfg.ft.expected_rate / cfg.ft.publish_decimation,
+                                      cfg.ft.rate_tolerance, self._ft_sink)
+                self.topic_inputs.append(source)
+                entities.append(self.create_subscription(
+                    WrenchStamped, topic,
+                    lambda msg, s=source: s.on_wrench(*ros_conv.wrench_from_msg(msg)),
+                    SENSOR_SUB))
+                client = self.create_client(Trigger, f'finger_{k}/ft/bias',
+                                            callback_group=self._client_group)
+                self._bias_clients.append(client)
+                entities.append(client)
+        entities.append(self.create_subscription(GraspForceCommand, 'gripper/grasp_force_cmd',
+                                                 self._on_command, COMMAND))
+        entities += [
+            self.create_service(Trigger, 'gripper/home', self._srv_home,
+                                callback_group=self._long_group),
+            self.create_service(Trigger, 'gripper/bias_ft', self._srv_bias,
+                                callback_group=self._long_group),
+            self.create_service(Trigger, 'gripper/stop', self._srv_stop),
+            self.create_service(Trigger, 'gripper/arm', self._srv_arm),
+        ]
+        self._entities = entities
+        self._timers = [self.create_timer(FT_SUPERVISE_PERIOD_S, self._on_ft_supervise,
+                                          clock=self._steady)]
+        port = cfg.serial.port
+        diag = TaskDiagnostics(self, port)
+        diag.add_task('link', self._diag_link, port)
+        diag.add_task('homing', self._diag_homing, port)
+        diag.add_task('force_loop', self._diag_force_loop, port)
+        for k in (1, 2):
+            if self.channels:
+                hw = self.channels[k - 1].address
+            else:
+                hw = f'finger_{k}/ft/wrench'
+            diag.add_task(f'ft_{k}', lambda now, k=k: self._diag_ft(k, now), hw)
+        self._diag = diag
+
+    def _destroy_endpoints(self) -> None:
+        if self._watchdog is not None:
+            self.destroy_timer(self._watchdog)
+            self._watchdog = None
+        for timer in self._timers:
+            self.destroy_timer(timer)
+        self._timers = []
+        if self._diag is not None:
+            self._diag.destroy()
+            self._diag = None
+        for entity in self._entities:
+            kind = type(entity).__name__
+            destroy = {'Publisher': self.destroy_publisher,
+                       'Subscription': self.destroy_subscription,
+                       'Service': self.destroy_service,
+                       'Client': self.destroy_client}.get(kind)
+            if destroy is not None:
+                destroy(entity)
+        self._entities = []
+        self._pubs = {}
+        self.topic_inputs = []
+        self._bias_clients = []
+
+    # ------------------------------------------------------------------ reader threads
+    def _on_result(self, result: LineResult) -> None:
+        """Serial reader thread, after the command of this line was written."""
+        if not self._publishing:
+            return
+        pubs = self._pubs
+        status = result.status
+        if status is not None:
+            pubs['status'].publish(ros_conv.status_msg(status))
+            self._lines += 1
+            if self._lines % self._cfg.joint_states.decimation == 0:
+                self._publish_joints(status.stamp, status.opening, status.opening_rate,
+                                     status.measured_grasp_force)
+        if result.motor is not None:
+            pubs['motor'].publish(ros_conv.motor_msg(result.motor))
+
+    def _publish_joints(self, stamp: float, opening: float, rate: float, force: float) -> None:
+        prefix = self._frames.tf_prefix
+        self._pubs['joints'].publish(ros_conv.joint_state_msg(
+            stamp, (prefix + 'finger_1_joint', prefix + 'finger_2_joint'), opening, rate, force))
+        if math.isfinite(opening):  # frames need a homed opening
+            self._pubs['finger_frames'].publish(
+                ros_conv.transforms_msg(stamp, finger_transforms(self._frames, opening)))
+
+    def _ft_sink(self, finger: int, stamp: float, wrench: Any) -> None:
+        """Net F/T reader thread (or topic callback): feed the loop's F_m."""
+        core = self.core
+        if core is None:
+            return
+        fz = float(wrench[2]) if wrench is not None else math.nan
+        core.bridge.on_ft_sample(finger, stamp, fz, wrench is not None)
+
+    def _on_event(self, t: float, kind: str, message: str) -> None:
+        del t
+        log = self.get_logger()
+        if kind in ('homing_done', 'homing_failed'):
+            self._homing_finished.set()
+        if kind in ('connected', 'homing_done'):
+            log.info(message)
+        elif kind in ('lost', 'firmware_restart', 'fault', 'homing_failed'):
+            log.error(f'{message}; disarmed, gripper/arm required' if kind != 'homing_failed'
+                      else message)
+        elif kind == 'stale':
+            log.warning(f'{message}; safe voltage written, disarmed (gripper/arm re-arms)')
+        else:  # 'error': failed reopen attempts, repeated with back-off
+            log.warning(message, throttle_duration_sec=1.0)
+
+    # ------------------------------------------------------------------ executor callbacks
+    def _on_watchdog(self) -> None:
+        core = self.core
+        if core is None:
+            return
+        t = self.now()
+        result = core.watchdog(t)
+        self._ticks += 1
+        changed = result.state != self._last_state
+        self._last_state = result.state
+        pub = self._pubs.get('status')
+        if result.state not in (LinkState.OK, LinkState.INACTIVE) and self._publishing and \
+                pub is not None and (changed or self._ticks % DEGRADED_STATUS_EVERY == 0):
+            # No lines arrive, so the reader publishes nothing: report link_ok = false here.
+            pub.publish(ros_conv.status_msg(core.bridge.status(t)))
+
+    def _on_ft_supervise(self) -> None:
+        t = self.now()
+        for channel in self.channels:
+            channel.supervise(t, self._cfg.force_control.ft_fault_after)
+
+    def _on_command(self, msg: GraspForceCommand) -> None:
+        core = self.core
+        if core is None:
+            return
+        force, stamp, timeout, source = ros_conv.grasp_command(msg)
+        result = core.bridge.set_grasp_force(force, self.now(), stamp=stamp, timeout=timeout,
+                                             source=source)
+        if not result.accepted:
+            self.get_logger().warning(f'gripper/grasp_force_cmd: command {force!r} N refused: '
+                                      f'{result.reason}', throttle_duration_sec=1.0)
+
+    def _on_params(self, cfg: GripperDriverParams) -> None:
+        """Run-time parameter change: swap the immutable sets between two control steps."""
+        self._cfg = cfg
+        if self.core is not None:
+            self.core.bridge.set_params(cfg.bridge())
+        for channel in self.channels:
+            channel.apply(cfg.ft, cfg.bias)
+
+    def _on_clock_jump(self, jump: TimeJump) -> None:
+        if self.core is not None and jump.delta.nanoseconds < 0:
+            self.core.bridge.reset(self.now())
+            self.get_logger().warning('clock jumped backwards: observer, controller and '
+                                      'ages reset')
+
+    # ------------------------------------------------------------------ services
+    def _srv_home(self, request: Trigger.Request, response: Trigger.Response
+                  ) -> Trigger.Response:
+        del request
+        core = self.core
+        if not self._active() or core is None:
+            response.success, response.message = False, 'gripper_driver is not active'
+            return response
+        self._homing_finished.clear()
+        started = core.bridge.start_homing(self.now())
+        if not started.accepted:
+            response.success, response.message = False, f'homing refused: {started.reason}'
+            return response
+        deadline = time.monotonic() + 2.0 * self._cfg.homing.timeout + 1.0
+        homing = core.bridge.homing
+        while homing.active and time.monotonic() < deadline:
+            self._homing_finished.wait(0.05)
+        response.success = homing.homed and not homing.active
+        response.message = homing.message or ('homed' if response.success else 'not homed')
+        return response
+
+    def _srv_bias(self, request: Trigger.Request, response: Trigger.Response
+                  ) -> Trigger.Response:
+        del request
+        if self.core is None:  # the streams run from configure on: inactive is fine
+            response.success, response.message = False, 'gripper_driver is not configured'
+            return response
+        if self.channels:
+            ok, message = run_bias(self.channels, self.now,
+                                   self._cfg.force_control.ft_fault_after)
+        else:
+            ok, message = self._bias_remote()
+        response.success, response.message = ok, message
+        (self.get_logger().info if ok else self.get_logger().error)(f'bias: {message}')
+        return response
+
+    def _bias_remote(self) -> tuple[bool, str]:
+        """``ft.mode: topic``: call ``finger_k/ft/bias`` of both standalone drivers."""
+        timeout = self._cfg.bias.duration + 5.0
+        results: list[str] = []
+        ok = True
+        for client in self._bias_clients:
+            if not client.wait_for_service(timeout_sec=1.0):
+                ok = False
+                results.append(f'{client.srv_name}: service not available')
+                continue
+            done = threading.Event()
+            future = client.call_async(Trigger.Request())
+            future.add_done_callback(lambda _f: done.set())
+            if not done.wait(timeout):
+                client.remove_pending_request(future)
+                ok = False
+                results.append(f'{client.srv_name}: no answer within {timeout:.1f} s')
+                continue
+            reply = future.result()
+            ok = ok and bool(reply.success)
+            results.append(f'{client.srv_name}: {reply.message}')
+        return ok, '; '.join(results)
+
+    def _start_background_bias(self, t: float) -> None:
+        """``bias.on_activate``: start the windows without waiting (results in diagnostics)."""
+        for channel in self.channels:
+            channel.start_bias(t)
+        for client in self._bias_clients:
+            client.call_async(Trigger.Request())
+
+    def _srv_stop(self, request: Trigger.Request, response: Trigger.Response
+                  ) -> Trigger.Response:
+        del request
+        if self.core is None:
+            response.success, response.message = False, 'gripper_driver is not configured'
+            return response
+        written = self.core.bridge.stop(self.now())
+        response.success = written
+        response.message = ('safe voltage written; target 0 N until the next command'
+                            if written else f'{self.core.port}: safe voltage not written '
+                            '(link down)')
+        return response
+
+    def _srv_arm(self, request: Trigger.Request, response: Trigger.Response
+                 ) -> Trigger.Response:
+        del request
+        if not self._active() or self.core is None:
+            response.success, response.message = False, 'gripper_driver is not active'
+            return response
+        result = self.core.bridge.arm(self.now())
+        response.success, response.message = result.accepted, result.reason
+        if result.accepted:
+            self.get_logger().info('armed by gripper/arm; target cleared to 0 N')
+        return response
+
+    # ------------------------------------------------------------------ diagnostics
+    def _diag_link(self, now: float) -> Report:
+        core = self.core
+        if core is None:
+            return Report(Level.STALE, 'not configured')
+        d = core.bridge.diagnostics(now)
+        s = core.stats()
+        rate = self._line_rate(now, d.lines_good)
+        values = (
+            ('port', core.port), ('connected', str(s.connected).lower()),
+            ('link_state', d.link_state.name), ('rate_hz', f'{rate:.1f}'),
+            ('expected_hz', f'{TELEMETRY_RATE_HZ:.1f}'), ('line_age_s', f'{d.line_age_s:.4f}'),
+            ('lines_good', str(d.lines_good)), ('lines_bad', str(d.lines_bad)),
+            ('lines_unknown', str(d.lines_unknown)), ('lines_non_finite', str(d.lines_non_finite)),
+            ('lines_too_long', str(d.lines_too_long)),
+            ('firmware_rejects', str(d.firmware_rejects)),
+            ('firmware_restarts', str(d.firmware_restarts)), ('reconnects', str(d.reconnects)),
+            ('link_losses', str(d.link_losses)), ('stale_events', str(d.stale_events)),
+            ('connect_failures', str(s.connect_failures)),
+            ('write_failures', str(d.write_failures)), ('armed', str(d.armed).lower()),
+            ('safe_reason', d.safe_reason), ('last_error', s.last_error))
+        if d.link_state in (LinkState.DOWN, LinkState.FAULT, LinkState.STALE):
+            return Report(Level.ERROR, f'{core.port}: link {d.link_state.name.lower()}'
+                          + (f' ({s.last_error})' if s.last_error else ''), values)
+        if d.link_state == LinkState.INACTIVE:
+            return Report(Level.OK, f'{core.port}: connected, inactive', values)
+        if abs(rate - TELEMETRY_RATE_HZ) > TELEMETRY_RATE_TOLERANCE * TELEMETRY_RATE_HZ:
+            return Report(Level.WARN, f'{core.port}: line rate {rate:.0f} Hz', values)
+        if not d.armed:
+            return Report(Level.WARN, f'{core.port}: disarmed ({d.safe_reason}); '
+                          'call gripper/arm', values)
+        return Report(Level.OK, f'{core.port}: telemetry ok, armed', values)
+
+    def _line_rate(self, now: float, lines: int) -> float:
+        ref = self._rate_ref
+        self._rate_ref = (now, lines)
+        if ref is None or now <= ref[0] or lines < ref[1]:
+            return math.nan
+        return (lines - ref[1]) / (now - ref[0])
+
+    def _diag_homing(self, now: float) -> Report:
+        core = self.core
+        if core is None:
+            return Report(Level.STALE, 'not configured')
+        homing = core.bridge.homing
+        result = homing.result
+        values = (('homed', str(homing.homed).lower()), ('active', str(homing.active).lower()),
+                  ('phase', homing.phase.name), ('message', homing.message),
+                  ('stroke_m', f'{result.stroke:.4f}' if result is not None else 'nan'))
+        if homing.active:
+            return Report(Level.OK, 'homing in progress', values)
+        if homing.homed:
+            return Report(Level.OK, 'homed', values)
+        return Report(Level.WARN, f'{homing.message or "not homed"}; call gripper/home', values)
+
+    def _diag_force_loop(self, now: float) -> Report:
+        core = self.core
+        if core is None:
+            return Report(Level.STALE, 'not configured')
+        d: BridgeDiagnostics = core.bridge.diagnostics(now)
+        mode = 'closed loop' if d.closed_loop else f'open loop ({d.bypass_reason.name.lower()})'
+        values = (
+            ('mode', mode), ('bypass_reason', d.bypass_reason.name),
+            ('armed', str(d.armed).lower()), ('saturations', str(d.saturations)),
+            ('skipped_integrations', str(d.skipped_integrations)),
+            ('command_age_s', f'{d.command_age_s:.3f}'), ('command_source', str(d.command_source)),
+            ('commands_accepted', str(d.commands_accepted)),
+            ('commands_rejected', str(d.commands_rejected)),
+            *((f'rejected_{k}', str(v)) for k, v in d.rejected_by_reason),
+            ('commands_ignored', str(d.commands_ignored)),
+            ('targets_clipped', str(d.targets_clipped)),
+            ('ft_age_s', ' '.join(f'{a:.4f}' for a in d.ft_age_s)),
+            ('ft_biased', ' '.join(str(b).lower() for b in d.ft_biased)))
+        if not d.active:
+            return Report(Level.OK, 'inactive', values)
+        if not d.armed:
+            return Report(Level.WARN, f'disarmed: {d.safe_reason}', values)
+        if d.bypass_reason == BypassReason.FT_STALE:
+            return Report(Level.ERROR, 'F/T stale while controlling', values)
+        return Report(Level.OK, mode, values)
+
+    def _diag_ft(self, finger: int, now: float) -> Report:
+        stale = self._cfg.force_control.ft_fault_after
+        if self.channels:
+            return self.channels[finger - 1].report(now, stale)
+        if self.topic_inputs:
+            return self.topic_inputs[finger - 1].report(now, stale)
+        return Report(Level.STALE, 'not configured')
+
+
+def _opener(write_timeout_s: float) -> Callable[..., ByteStream]:
+    """`open_stream` with the write timeout set to ``link.fault_after``.
+
+    pyserial checks its write timeout *after* ``os.write`` returned, so a thread that waited
+    for the GIL longer than the timeout gets ``Write timeout`` for bytes already written: with
+    the 50 ms default a busy process sees false link faults (disarm, reconnect). A write that
+    really blocks that long is a link fault anyway, so both limits are one parameter.
+    """
+    def opener(url: str, baudrate: int, timeout_s: float, **_: Any) -> ByteStream:
+        return open_stream(url, baudrate, timeout_s, write_timeout_s=write_timeout_s)
+    return opener
+
+
+def main(args: list[str] | None = None) -> int:
+    """Console entry point ``gripper_driver``."""
+    sys.setswitchinterval(SWITCH_INTERVAL_S)
+    return run_node(GripperDriverNode, args, multithreaded=True)
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,135 @@
+# SPDX-License-Identifier: Apache-2.0
+"""netft_driver with real rclpy against the Net F/T emulator on 127.0.0.1 (real RDT codecs)."""
+from __future__ import annotations
+
+import socket
+import threading
+from typing import Any, Iterator
+
+import pytest
+
+from slip_gripper_driver.core.netft_emulator import NetFTEmulator
+
+pytestmark = pytest.mark.ros
+
+TIMEOUT_S = 10.0
+OFFSET_FZ = 2.5  # [N] what biasing removes
+
+
+@pytest.fixture
+def box() -> Iterator[NetFTEmulator]:
+    emu = NetFTEmulator(host='127.0.0.1', port=0, rate_hz=1000.0,
+                        offsets=(0.1, 0.0, OFFSET_FZ, 0.0, 0.0, 0.01), noise_std=0.01, seed=3)
+    emu.start()
+    yield emu
+    emu.stop()
+
+
+def overrides(port: int, **extra: Any) -> list[Any]:
+    from rclpy.parameter import Parameter
+    values: dict[str, Any] = {'autostart': False, 'finger': 2, 'address': '127.0.0.1',
+                              'port': port, 'read_config': False, 'counts_per_force': 1.0e6,
+                              'counts_per_torque': 1.0e6, 'publish_raw': True}
+    values.update(extra)
+    return [Parameter(k, value=v) for k, v in values.items()]
+
+
+def test_raw_then_bias_service_then_biased_wrench_diagnostics_and_stop_on_shutdown(
+        ros_context: Any, box: NetFTEmulator) -> None:
+    from diagnostic_msgs.msg import DiagnosticArray
+    from geometry_msgs.msg import WrenchStamped
+    from rclpy.executors import MultiThreadedExecutor, SingleThreadedExecutor
+    from rclpy.lifecycle import TransitionCallbackReturn
+    from rclpy.node import Node
+    from rclpy.parameter import Parameter
+    from rclpy.qos import QoSProfile
+    from std_srvs.srv import Trigger
+
+    from slip_gripper_driver.common.node_main import shutdown_lifecycle
+    from slip_gripper_driver.netft_driver_node import NetFTDriverNode
+    from slip_gripper_driver.testing import call_service, spin_until
+
+    node = NetFTDriverNode(context=ros_context, parameter_overrides=overrides(box.address[1]))
+    executor = MultiThreadedExecutor(num_threads=2, context=ros_context)
+    executor.add_node(node)
+    stop = threading.Event()
+
+    def spin() -> None:
+        while not stop.is_set():
+            executor.spin_once(timeout_sec=0.05)
+    thread = threading.Thread(target=spin, daemon=True)
+    thread.start()
+    probe = Node('probe', context=ros_context)
+    probe_exec = SingleThreadedExecutor(context=ros_context)
+    probe_exec.add_node(probe)
+    raw: list[WrenchStamped] = []
+    biased: list[WrenchStamped] = []
+    diags: list[DiagnosticArray] = []
+    probe.create_subscription(WrenchStamped, 'finger_2/ft/raw', raw.append, QoSProfile(depth=500))
+    probe.create_subscription(WrenchStamped, 'finger_2/ft/wrench', biased.append,
+                              QoSProfile(depth=500))
+    probe.create_subscription(DiagnosticArray, '/diagnostics', diags.append, 10)
+    client = probe.create_client(Trigger, 'finger_2/ft/bias')
+    try:
+        assert node.trigger_configure() == TransitionCallbackReturn.SUCCESS, node.last_error
+        assert node.trigger_activate() == TransitionCallbackReturn.SUCCESS
+        assert spin_until(probe_exec, lambda: len(raw) > 100, TIMEOUT_S)
+        assert not biased  # the bias-removed topic stays silent until a bias exists
+        assert raw[-1].header.frame_id == 'ft_sensor_2'
+        assert raw[-1].wrench.force.z == pytest.approx(OFFSET_FZ, abs=0.1)
+
+        reply = call_service(probe_exec, client, Trigger.Request(), TIMEOUT_S)
+        assert reply is not None and reply.success, reply
+        assert '127.0.0.1' in reply.message
+        assert spin_until(probe_exec, lambda: len(biased) > 100, TIMEOUT_S)
+        recent = biased[-50:]
+        assert sum(w.wrench.force.z for w in recent) / 50 == pytest.approx(0.0, abs=0.05)
+        assert sum(w.wrench.torque.z for w in recent) / 50 == pytest.approx(0.0, abs=0.05)
+        assert spin_until(probe_exec, lambda: any(
+            s.name == 'netft_driver: ft' and s.level == b'\x00' for d in diags[-1:]
+            for s in d.status), 5.0), diags[-1] if diags else 'no diagnostics'
+        status = next(s for s in diags[-1].status if s.name == 'netft_driver: ft')
+        values = {kv.key: kv.value for kv in status.values}
+        assert status.hardware_id == '127.0.0.1'
+        assert float(values['rate_hz']) == pytest.approx(1000.0, rel=0.15)
+        assert values['biased'] == 'true' and values['status'] == '0x00000000'
+
+        # device-side bias (0x0042) selected at run time; verified by a host window
+        assert node.set_parameters([Parameter('bias.mode', value='device')])[0].successful
+        reply = call_service(probe_exec, client, Trigger.Request(), TIMEOUT_S)
+        assert reply is not None and reply.success, reply
+        assert box.biases == 1
+    finally:
+        shutdown_lifecycle(node)
+        stop.set()
+        thread.join(2.0)
+        executor.shutdown()
+        probe_exec.shutdown()
+        node.destroy_node()
+        probe.destroy_node()
+    assert box.stops >= 1 and not box.streaming  # stop (0x0000) sent on shutdown
+
+
+def test_silent_box_fails_configure_naming_it(ros_context: Any) -> None:
+    from rclpy.lifecycle import TransitionCallbackReturn
+
+    from slip_gripper_driver.netft_driver_node import NetFTDriverNode
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sink:  # bound, never answers
+        sink.bind(('127.0.0.1', 0))
+        port = sink.getsockname()[1]
+        node = NetFTDriverNode(context=ros_context, parameter_overrides=overrides(port))
+        try:
+            assert node.trigger_configure() == TransitionCallbackReturn.FAILURE
+            assert f'127.0.0.1:{port}' in node.last_error
+            assert 'no RDT data' in node.last_error
+        finally:
+            node.destroy_node()
+    for extra, message in (({'address': ''}, 'address is required'),
+                           ({'counts_per_force': 0.0},
+                            'counts_per_force and counts_per_torque are required')):
+        node = NetFTDriverNode(context=ros_context, parameter_overrides=overrides(port, **extra))
+        try:
+            assert node.trigger_configure() == TransitionCallbackReturn.FAILURE
+            assert message in node.last_error
+        finally:
+            node.destroy_node()
