@@ -24,7 +24,10 @@ setup(
     extras_require={'test': ['pytest']},
     entry_points={
         'console_scripts': [
-            # '<executable> = slip_velocity_sensor.<module>:main',
+            'velocity_sensor = slip_velocity_sensor.velocity_sensor_node:main',
+            'velocity_sensor_emulator = slip_velocity_sensor.core.emulator:main',
+            'calibration_fit = slip_velocity_sensor.calibration_fit:main',
+            'calibration_recorder = slip_velocity_sensor.calibration_recorder:main',
         ],
     },
 )

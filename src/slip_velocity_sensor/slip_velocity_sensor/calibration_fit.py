@@ -4,15 +4,16 @@
 Sub-commands::
 
     calibration_fit fit RECORDINGS_DIR --out-dir DIR [--model abs|signed|none] ...
-        Fit the 12 recordings Sensor<N>chip<k><x|y>.csv (columns t [s], v [m/s]: raw chip
-        speed in single-chip mode) and write, per sensor, calibration_sensor_<N>.yaml (SI, the
-        file the node loads), a report plot (PNG) and a residual table (CSV).
+        Fit the 12 recordings Sensor<N>chip<k><x|y> and write, per sensor,
+        calibration_sensor_<N>.yaml (SI, the file the node loads), a report plot (PNG) and a
+        residual table (CSV). A recording is either a CSV file Sensor<N>chip<k><x|y>.csv
+        (columns t [s], v [m/s]: raw chip speed in single-chip mode) or a bag directory
+        Sensor<N>chip<k><x|y> written by calibration_recorder (the finger_<k>/slip/chips
+        samples of chip k in single-chip mode, stamped at acquisition).
     calibration_fit from-table TABLE.csv --out-dir DIR
         Write calibration files from the reference table (velocity_sensor_calibration.csv).
     calibration_fit synth OUT_DIR [--truth-table TABLE.csv]
         Write 12 synthetic recordings of the procedure (to try the tool without hardware).
-
-Recordings from bags are converted by the recorder tooling; this tool reads CSV.
 """
 from __future__ import annotations
 
@@ -35,13 +36,68 @@ from slip_velocity_sensor.core.calibration_fit import (FIT_MODELS, AxisFit, FitE
 from slip_velocity_sensor.core.procedure import (ProcedureParams, SynthesisParams,
                                                  synthesize_recording)
 
-RECORDING_RE = re.compile(r'Sensor(\d+)chip([123])([xy])\.csv$')
+RECORDING_RE = re.compile(r'Sensor(\d+)chip([123])([xy])(\.csv)?$')
 CHIPS = (1, 2, 3)
 AXES = ('x', 'y')
 
 
-def read_recording(path: Path) -> tuple[np.ndarray, np.ndarray]:
-    """Columns ``t`` [s] and ``v`` [m/s] of a recording CSV."""
+def is_bag(path: Path) -> bool:
+    """True for a rosbag2 directory (holds ``metadata.yaml``)."""
+    return path.is_dir() and (path / 'metadata.yaml').is_file()
+
+
+def read_bag_recording(path: Path, chip: int, axis: str,
+                       topic: str = '') -> tuple[np.ndarray, np.ndarray]:
+    """Stamps ``t`` [s] and raw speed ``v`` [m/s] of chip ``chip``, axis ``axis`` from a bag.
+
+    Uses the ``OpticalChipArray`` samples in single-chip mode ``chip`` (fused-mode samples
+    before and after the procedure are skipped) with their acquisition stamps.
+
+    Args:
+        path: Bag directory (calibration_recorder output).
+        chip: Chip 1..3.
+        axis: ``'x'`` (tangential) or ``'y'`` (radial).
+        topic: Chips topic; '' = the only ``.../slip/chips`` topic with samples of ``chip``.
+
+    Raises:
+        ValueError: No (or an ambiguous) chips topic, or no samples of the chip.
+    """
+    from slip_gripper_driver.common.bag_io import BagError, bag_info, read_messages, stamp_s
+
+    try:
+        if topic:
+            topics = [topic]
+        else:
+            topics = [t.name for t in bag_info(path).topics
+                      if t.msgtype == 'slip_msgs/msg/OpticalChipArray' and t.count > 0]
+        data = read_messages(path, topics) if topics else {}
+    except BagError as exc:
+        raise ValueError(str(exc)) from exc
+    series = {}
+    for name, items in data.items():
+        rows = [(stamp_s(msg), float((msg.vx if axis == 'x' else msg.vy)[chip - 1]))
+                for _, msg in items if msg.chip_mode == chip]
+        rows = [r for r in rows if math.isfinite(r[1])]
+        if rows:
+            series[name] = rows
+    if not series:
+        raise ValueError(f'{path}: no single-chip samples of chip {chip} on '
+                         f'{topics or "any OpticalChipArray topic"}')
+    if len(series) > 1:
+        raise ValueError(f'{path}: chip {chip} samples on several topics {sorted(series)}; '
+                         'choose one with --topic')
+    arr = np.asarray(next(iter(series.values())), dtype=np.float64)
+    order = np.argsort(arr[:, 0], kind='stable')
+    return arr[order, 0], arr[order, 1]
+
+
+def read_recording(path: Path, topic: str = '') -> tuple[np.ndarray, np.ndarray]:
+    """``t`` [s] and ``v`` [m/s] of a recording: a CSV file or a bag named like a recording."""
+    if is_bag(path):
+        match = RECORDING_RE.fullmatch(path.name)
+        if match is None:
+            raise ValueError(f'{path}: bag name must be Sensor<N>chip<k><x|y>')
+        return read_bag_recording(path, int(match[2]), match[3], topic)
     with path.open(newline='', encoding='utf-8') as handle:
         reader = csv.DictReader(handle)
         if reader.fieldnames is None or not {'t', 'v'} <= set(reader.fieldnames):
@@ -59,13 +115,55 @@ def write_recording(path: Path, t: np.ndarray, v: np.ndarray) -> None:
         writer.writerows(zip((f'{x:.6f}' for x in t), (f'{x:.7f}' for x in v)))
 
 
+def write_bag_recording(path: Path, t: np.ndarray, v: np.ndarray, chip: int, axis: str,
+                        finger: int = 1) -> None:
+    """Write a recording as the node publishes it: ``finger_<finger>/slip/chips`` samples.
+
+    Args:
+        path: New bag directory (``Sensor<N>chip<k><x|y>``).
+        t: Acquisition stamps [s].
+        v: Raw speed of chip ``chip`` along ``axis`` [m/s].
+        chip: Chip 1..3 (also the chip mode of the samples).
+        axis: ``'x'`` or ``'y'``.
+        finger: Finger of the topic name.
+    """
+    from slip_gripper_driver.common.bag_io import BagWriter
+
+    topic = f'/finger_{finger}/slip/chips'
+    msgtype = 'slip_msgs/msg/OpticalChipArray'
+    with BagWriter(path) as writer:
+        types = writer.typestore.types
+        writer.add_topic(topic, msgtype)
+        zeros = np.zeros(3, dtype=np.int16)
+        prev = math.nan
+        for t_k, v_k in zip(t, v):
+            vx = np.full(3, math.nan)
+            vy = np.full(3, math.nan)
+            (vx if axis == 'x' else vy)[chip - 1] = v_k
+            synced = np.zeros(3, dtype=bool)
+            synced[chip - 1] = True
+            ns = int(round(float(t_k) * 1e9))
+            stamp = types['builtin_interfaces/msg/Time'](sec=ns // 10**9, nanosec=ns % 10**9)
+            header = types['std_msgs/msg/Header'](stamp=stamp, frame_id=f'vel_sensor_{finger}')
+            msg = types[msgtype](header=header, chip_mode=chip, dx=zeros, dy=zeros,
+                                 dt=float(t_k) - prev,
+                                 vx=vx, vy=vy, calibrated=False, synced=synced)
+            writer.write_message(topic, ns, msg)
+            prev = float(t_k)
+
+
 def find_recordings(directory: Path) -> dict[int, dict[tuple[int, str], Path]]:
     """``{sensor: {(chip, axis): path}}`` of the recordings in ``directory``."""
     found: dict[int, dict[tuple[int, str], Path]] = {}
     for path in sorted(directory.iterdir()):
         match = RECORDING_RE.fullmatch(path.name)
-        if match:
-            found.setdefault(int(match[1]), {})[(int(match[2]), match[3])] = path
+        if match and (match[4] is not None or is_bag(path)):
+            key = (int(match[2]), match[3])
+            files = found.setdefault(int(match[1]), {})
+            if key in files:
+                raise ValueError(f'{directory}: both {files[key].name} and {path.name} hold '
+                                 f'Sensor{match[1]}chip{match[2]}{match[3]}')
+            files[key] = path
     return found
 
 
@@ -158,10 +256,14 @@ def _print_table(sensor: int, fits: dict[tuple[int, str], AxisFit]) -> None:
 
 def _fit_command(args: argparse.Namespace) -> int:
     params = FitParams(distance=args.distance, model=args.model, a_factor=args.a_factor)
-    found = find_recordings(Path(args.recordings))
+    try:
+        found = find_recordings(Path(args.recordings))
+    except (OSError, ValueError) as exc:
+        print(f'error: {exc}', file=sys.stderr)
+        return 2
     if not found:
-        print(f'no recordings named Sensor<N>chip<k><x|y>.csv in {args.recordings}',
-              file=sys.stderr)
+        print(f'no recordings Sensor<N>chip<k><x|y>.csv or bags Sensor<N>chip<k><x|y> in '
+              f'{args.recordings}', file=sys.stderr)
         return 2
     out_dir = Path(args.out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -175,7 +277,7 @@ def _fit_command(args: argparse.Namespace) -> int:
         fits: dict[tuple[int, str], AxisFit] = {}
         try:
             for key, path in sorted(files.items()):
-                t, v = read_recording(path)
+                t, v = read_recording(path, args.topic)
                 fits[key] = fit_axis(t, v, params)
         except (FitError, ValueError) as exc:
             print(f'Sensor {sensor}: {path.name}: {exc}', file=sys.stderr)
@@ -230,8 +332,12 @@ def _synth_command(args: argparse.Namespace) -> int:
         for chip in CHIPS:
             for axis in AXES:
                 rec = synthesize_recording(cal.axis(chip, axis), ProcedureParams(), synthesis, rng)
-                write_recording(out_dir / f'Sensor{sensor}chip{chip}{axis}.csv', rec.t, rec.v)
-    print(f'wrote {6 * len(truths)} recordings to {out_dir}')
+                name = f'Sensor{sensor}chip{chip}{axis}'
+                if args.format == 'bag':
+                    write_bag_recording(out_dir / name, rec.t, rec.v, chip, axis, finger=sensor)
+                else:
+                    write_recording(out_dir / f'{name}.csv', rec.t, rec.v)
+    print(f'wrote {6 * len(truths)} recordings ({args.format}) to {out_dir}')
     return 0
 
 
@@ -247,7 +353,10 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog='calibration_fit', description=__doc__.split('\n')[0])
     sub = parser.add_subparsers(dest='command', required=True)
     fit = sub.add_parser('fit', help='fit recordings and write calibration files')
-    fit.add_argument('recordings', help='directory with Sensor<N>chip<k><x|y>.csv')
+    fit.add_argument('recordings',
+                     help='directory with Sensor<N>chip<k><x|y>.csv files or bag directories')
+    fit.add_argument('--topic', default='',
+                     help='chips topic in the bags (default: the one with the chip\'s samples)')
     fit.add_argument('--out-dir', required=True)
     fit.add_argument('--model', choices=FIT_MODELS, default='abs',
                      help='speed term of the fit (abs: symmetric; signed: reference)')
@@ -270,6 +379,8 @@ def build_parser() -> argparse.ArgumentParser:
     synth.add_argument('--profile', default='trapezoid',
                        choices=('constant', 'trapezoid', 'minimum_jerk'))
     synth.add_argument('--seed', type=int, default=0)
+    synth.add_argument('--format', choices=('csv', 'bag'), default='csv',
+                       help='CSV files or bags like calibration_recorder writes')
     synth.set_defaults(func=_synth_command)
     return parser
 

@@ -146,8 +146,8 @@ def test_resolve_prefers_the_file_and_refuses_another_sensors_file() -> None:
 
 
 def test_resolve_inline_parameters_and_flag_identity() -> None:
-    identity = cal_mod.resolve_calibration(CalibrationParams(), 0.0243, 'sensor_1')
+    identity = cal_mod.resolve_calibration(CalibrationParams(file=''), 0.0243, 'sensor_1')
     assert identity.is_identity and 'identity' in identity.source
-    params = CalibrationParams(chip_2=ChipParams(y=AxisParams(a=0.29, b=0.8831)))
+    params = CalibrationParams(file='', chip_2=ChipParams(y=AxisParams(a=0.29, b=0.8831)))
     cal = cal_mod.resolve_calibration(params, 0.0243, 'sensor_1')
     assert cal.axis(2, 'y') == AxisCalibration(0.29, 0.8831) and cal.source == 'parameters'

@@ -167,3 +167,20 @@ def test_cli_writes_the_png_report(tmp_path: Path) -> None:
     png = tmp_path / 'out' / 'calibration_sensor_2_report.png'
     assert png.stat().st_size > 10_000 and png.read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
     assert 'chip' in result.stdout and 'calibration_sensor_2.yaml' in result.stdout
+
+
+def test_prompt_schedule_and_time_scaling() -> None:
+    from slip_velocity_sensor.core.procedure import prompt_schedule, scaled
+    steps = schedule()
+    prompts = prompt_schedule(steps, warn_before=3.0)
+    assert [p.t for p in prompts] == sorted(p.t for p in prompts)
+    go = [p for p in prompts if p.text.startswith('GO')]
+    ready = [p for p in prompts if p.text.startswith('get ready')]
+    assert len(go) == 12 and len(ready) == 12          # every rest before a traverse is > 3 s
+    assert go[0].t == 15.0 and ready[0].t == 12.0 and 'far stop in 10 s' in go[0].text
+    assert prompts[-1].text == 'procedure finished' and prompts[-1].t == steps[-1].end
+    fast = schedule(scaled(ProcedureParams(), 0.1))
+    assert fast[-1].end == pytest.approx(0.1 * steps[-1].end)
+    assert [p for p in prompt_schedule(fast, 0.0) if p.text.startswith('get ready')] == []
+    with pytest.raises(ValueError):
+        scaled(ProcedureParams(), 0.0)

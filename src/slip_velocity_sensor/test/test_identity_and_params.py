@@ -94,3 +94,20 @@ def test_only_transport_code_may_touch_pyserial_and_no_core_prints() -> None:
         calls = {n.func.id for n in ast.walk(tree)
                  if isinstance(n, ast.Call) and isinstance(n.func, ast.Name)}
         assert 'print' not in calls, path.name
+
+
+def test_frame_id_must_match_the_finger_and_calibration_file_placeholders() -> None:
+    params = from_flat(VelocitySensorParams, {'port': 'x', 'finger': 2,
+                                              'expected_name': 'sensor_2',
+                                              'frame_id': 'vel_sensor_2',
+                                              'frames.tf_prefix': 'cell_a/'})
+    assert params.resolved_frame_id == 'cell_a/vel_sensor_2'
+    assert params.calibration_file == 'config/calibration_sensor_2.yaml'
+    with pytest.raises(ParameterError, match="frame_id 'vel_sensor_1' names finger 1"):
+        from_flat(VelocitySensorParams, {'port': 'x', 'finger': 2})
+    custom = from_flat(VelocitySensorParams, {'port': 'x', 'finger': 2, 'frame_id': 'pad_left',
+                                              'calibration.file': '/cal/{finger}.yaml'})
+    assert custom.resolved_frame_id == 'pad_left' and custom.calibration_file == '/cal/2.yaml'
+    with pytest.raises(ParameterError, match='initial_delay'):
+        from_flat(VelocitySensorParams, {'port': 'x', 'reconnect.initial_delay': 2.0,
+                                         'reconnect.max_delay': 1.0})

@@ -215,3 +215,38 @@ def test_byte_feed_with_garbage_counts_every_line() -> None:
     c = s.diagnostics(1.0).counters
     assert len(samples) == c.velocity >= 2000  # garbage without a newline eats the next line
     assert c.total == data.count(b'\n')
+
+
+def test_stale_stream_yields_one_invalid_marker_per_outage() -> None:
+    s = _session(stale_after=0.05)
+    for k in range(5):
+        s.handle_line(1.0 + k / 120, _line(10.0, 0.0, 0.0))
+    last = s.latest
+    assert s.stale_marker(last.stamp + 0.04) is None            # still fresh
+    marker = s.stale_marker(last.stamp + 0.06)
+    assert marker is not None and not marker.valid and marker.stamp == last.stamp + 0.06
+    assert math.isnan(marker.vx) and marker.x == last.x          # pose kept, no old twist
+    assert s.stale_marker(last.stamp + 1.0) is None             # once per outage
+    s.handle_line(3.0, _line(10.0, 0.0, 0.0))
+    assert s.stale_marker(3.1) is not None                      # a new outage, a new marker
+
+
+def test_a_multi_line_boot_banner_is_one_restart() -> None:
+    s = _session()
+    s.handle_line(1.0, b'ESP-ROM:esp32s3-20210327')
+    s.handle_line(1.0, b'rst:0x1 (POWERON),boot:0x8 (SPI_FAST_FLASH_BOOT)')
+    s.handle_line(1.3, _line(0.0, 0.0, 0.0))
+    s.handle_line(2.0, b'ESP-ROM:esp32s3-20210327')
+    assert s.diagnostics(2.0).device_restarts == 2
+
+
+def test_runtime_parameter_update_keeps_the_history() -> None:
+    s = _session()
+    for k in range(60):
+        s.handle_line(1.0 + k / 60, _line(1.0, 0.0, 0.0))
+    assert s.reports(2.0)['rate'].level is Level.WARN            # 60 Hz against 120 Hz
+    s.update_params(SessionParams(expected_rate=60.0, stale_after=0.5))
+    assert s.reports(2.0)['rate'].level is Level.OK
+    assert not s.is_stale(2.4)
+    s.chip_mode_sent(2, 2.0)
+    assert s.chip_mode == -1 and s.target_chip_mode == 2

@@ -58,6 +58,10 @@ class SpeedTerm(str, Enum):
     ABS = 'abs'
 
 
+#: Default ``calibration.file`` of the node: the installed file of the expected board (relative
+#: paths refer to the package's share directory; the node substitutes and resolves it).
+DEFAULT_FILE = 'config/calibration_{expected_name}.yaml'
+
 #: Allowed values of the ``calibration.speed_term`` parameter.
 SPEED_TERMS = tuple(term.value for term in SpeedTerm)
 
@@ -342,13 +346,16 @@ class ChipParams:
 class CalibrationParams:
     """Calibration parameters of the sensor node (``calibration.*``).
 
+    ``file`` defaults to `DEFAULT_FILE` (the installed calibration of the expected board).
     Inline values default to the identity (a = 0, b = 1) so that no calibration is ever a
-    literal in code; the node YAML or ``file`` must supply the real values, and an identity
-    calibration is reported as such in diagnostics.
+    literal in code; they apply only with ``file = ''``, and an identity calibration is
+    reported as such in diagnostics.
     """
 
-    file: str = field(default='', metadata={
-        'read_only': True, 'description': 'calibration YAML from the fit tool; overrides inline'})
+    file: str = field(default=DEFAULT_FILE, metadata={
+        'read_only': True,
+        'description': "calibration YAML from the fit tool ({expected_name} and {finger} are "
+                       "substituted); overrides the inline values; '' = inline"})
     speed_term: str = field(default=SpeedTerm.ZERO.value, metadata={
         'choices': SPEED_TERMS, 'read_only': True,
         'description': 'zero (upload a = 0), signed_compat (reference), abs (fixed firmware)'})

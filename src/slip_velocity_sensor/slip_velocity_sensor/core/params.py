@@ -5,17 +5,40 @@ One frozen dataclass; nested groups flatten with ``.`` (``handshake.timeout``,
 ``calibration.chip_1.x.a``). `slip_gripper_driver.core.param_schema` validates and rebuilds it;
 ``config/velocity_sensor.yaml`` must list every field. Beyond the spec table:
 ``max_integration_dt``, ``chip_mode_settle`` and ``resync_timeout`` (host processing, see
-`session.SessionParams`) and ``lock_dir`` (name claim, `identity.NameClaim`).
+`session.SessionParams`), ``lock_dir`` (name claim, `identity.NameClaim`), ``reconnect.*``
+(back-off of reopening the port and of re-initialising the device, `driver.SensorDriver`) and
+``frames.tf_prefix`` (the shared frame prefix of the cell, also set by ``cell.yaml``).
+
+``calibration.file`` defaults to ``config/calibration_{expected_name}.yaml``: the
+placeholders ``{expected_name}`` and ``{finger}`` are substituted, and a relative path refers to
+the package's share directory (the node resolves it), so every instance loads the installed
+calibration of its own board unless told otherwise; '' selects the inline values.
+A ``frame_id`` of the form ``vel_sensor_<j>`` must name this node's finger (a copied YAML with
+``finger: 2`` but ``frame_id: vel_sensor_1`` fails configure instead of publishing in the wrong
+frame).
 """
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, field
 
 from slip_gripper_driver.core.param_schema import ParameterError, check_value, specs
+from slip_gripper_driver.core.transport import ReconnectParams
 from slip_velocity_sensor.core import protocol
 from slip_velocity_sensor.core.calibration import CalibrationParams
 from slip_velocity_sensor.core.handshake import HandshakeParams
 from slip_velocity_sensor.core.session import SessionParams
+
+
+_FINGER_FRAME = re.compile(r'vel_sensor_(\d+)')
+
+
+@dataclass(frozen=True)
+class FrameParams:
+    """The part of the cell's shared ``frames.*`` parameters this node uses."""
+
+    tf_prefix: str = field(default='', metadata={
+        'read_only': True, 'description': 'prefix of every frame id (shared with cell.yaml)'})
 
 
 @dataclass(frozen=True)
@@ -35,7 +58,8 @@ class VelocitySensorParams:
     expected_name: str = field(default='sensor_1', metadata={
         'read_only': True, 'description': 'name the sensor must answer to "n"'})
     frame_id: str = field(default='vel_sensor_1', metadata={
-        'read_only': True, 'description': 'frame of the published samples'})
+        'read_only': True, 'description': 'frame of the published samples (without tf_prefix)'})
+    frames: FrameParams = field(default_factory=FrameParams)
     handshake: HandshakeParams = field(default_factory=HandshakeParams)
     command_spacing: float = field(default=0.010, metadata={
         'unit': 's', 'range': (0.010, 1.0),
@@ -62,6 +86,7 @@ class VelocitySensorParams:
     resync_timeout: float = field(default=0.2, metadata={
         'unit': 's', 'range': (0.0, 10.0),
         'description': 'longest a chip re-sync keeps samples invalid without its end line'})
+    reconnect: ReconnectParams = field(default_factory=ReconnectParams)
     lock_dir: str = field(default='', metadata={
         'read_only': True,
         'description': 'directory of the sensor-name claim files; empty: XDG_RUNTIME_DIR or /tmp'})
@@ -71,8 +96,26 @@ class VelocitySensorParams:
         problems = [p for s in specs(type(self)) for p in check_value(s, _get(self, s.name))]
         if not protocol.is_valid_name(self.expected_name):
             problems.append(f'expected_name {self.expected_name!r} is not a sensor name')
+        match = _FINGER_FRAME.fullmatch(self.frame_id)
+        if match and int(match[1]) != self.finger:
+            problems.append(f'frame_id {self.frame_id!r} names finger {match[1]}, but finger is '
+                            f'{self.finger}')
+        if self.reconnect.initial_delay > self.reconnect.max_delay:
+            problems.append(f'reconnect.initial_delay {self.reconnect.initial_delay} s exceeds '
+                            f'reconnect.max_delay {self.reconnect.max_delay} s')
         if problems:
             raise ParameterError('; '.join(problems))
+
+    @property
+    def resolved_frame_id(self) -> str:
+        """Frame id of the published messages: ``frames.tf_prefix`` + ``frame_id``."""
+        return self.frames.tf_prefix + self.frame_id
+
+    @property
+    def calibration_file(self) -> str:
+        """``calibration.file`` with ``{expected_name}`` and ``{finger}`` substituted."""
+        return (self.calibration.file.replace('{expected_name}', self.expected_name)
+                .replace('{finger}', str(self.finger)))
 
     def session_params(self) -> SessionParams:
         """The host-processing subset."""

@@ -126,6 +126,57 @@ def step_at(steps: tuple[ProcedureStep, ...], t: float) -> ProcedureStep | None:
     return None
 
 
+def scaled(params: ProcedureParams, time_scale: float) -> ProcedureParams:
+    """The procedure with every duration multiplied by ``time_scale`` (> 0), same distance.
+
+    For rehearsals and tests; speeds grow by 1/time_scale, so keep it near 1 on hardware.
+    """
+    if not time_scale > 0.0:
+        raise ValueError(f'time_scale must be > 0, got {time_scale!r}')
+    return ProcedureParams(
+        distance=params.distance,
+        traverse_durations=tuple(d * time_scale for d in params.traverse_durations),
+        pauses=tuple(d * time_scale for d in params.pauses),
+        final_rest=params.final_rest * time_scale)
+
+
+class Prompt(NamedTuple):
+    """One operator prompt: when to show it [s since the start] and the text."""
+
+    t: float
+    text: str
+
+
+def prompt_schedule(steps: tuple[ProcedureStep, ...], warn_before: float = 3.0
+                    ) -> tuple[Prompt, ...]:
+    """Timed prompts of a schedule: each step at its start, and a warning before traverses.
+
+    Args:
+        steps: The procedure (`schedule`).
+        warn_before: Lead of the "get ready" warning before each traverse [s]; shown only
+            when the preceding rest is longer than that (0 disables it).
+
+    Returns:
+        Prompts in time order.
+    """
+    n_traverses = sum(1 for s in steps if s.kind is StepKind.TRAVERSE)
+    prompts: list[Prompt] = []
+    done = 0
+    for prev, step in zip((None,) + steps[:-1], steps):
+        if step.kind is StepKind.TRAVERSE:
+            done += 1
+            if warn_before > 0.0 and prev is not None and prev.duration > warn_before:
+                prompts.append(Prompt(step.start - warn_before,
+                                      f'get ready: traverse {done}/{n_traverses} in '
+                                      f'{warn_before:g} s'))
+            prompts.append(Prompt(step.start, f'GO   traverse {done}/{n_traverses}: '
+                                              f'{step.prompt}'))
+        else:
+            prompts.append(Prompt(step.start, f'REST {step.prompt}'))
+    prompts.append(Prompt(steps[-1].end, 'procedure finished'))
+    return tuple(sorted(prompts, key=lambda p: p.t))
+
+
 def traverse_velocity(tau: NDArray[np.float64], duration: float, distance: float,
                       profile: str = 'trapezoid',
                       ramp_fraction: float = 0.1) -> NDArray[np.float64]:

@@ -161,6 +161,7 @@ class SensorSession:
         self._resync_until: float | None = None
         self._product_ids: tuple[int, ...] = ()
         self._device_restarts = 0
+        self._booting = False
         self._identity_ok = True
         self._name_conflicts = 0
         self._last_bad_reason = ''
@@ -208,6 +209,14 @@ class SensorSession:
             self._initialised = False
             self._t_prev = None
             self.splitter.clear()
+
+    def update_params(self, params: SessionParams) -> None:
+        """Apply new processing settings at run time (monitors keep their history)."""
+        with self._lock:
+            self.params = params
+            self._rate.expected_hz = params.expected_rate
+            self._rate.tolerance = params.rate_tolerance
+            self._age.stale_after_s = params.stale_after
 
     def chip_mode_sent(self, mode: int, t: float) -> None:
         """Record that ``c<mode>`` was written at ``t`` [s] (see `protocol.chip_mode_command`).
@@ -277,7 +286,9 @@ class SensorSession:
             self._product_ids = parsed.ids
             self._resync_until = None
         elif isinstance(parsed, BootLine):
-            self._device_restarts += 1
+            if not self._booting:  # a banner has several lines: count the restart once
+                self._device_restarts += 1
+            self._booting = True
             self._initialised = False
             self._chip_mode = 0  # firmware default after a restart
             self._pending_mode = None
@@ -293,6 +304,7 @@ class SensorSession:
 
     def _on_velocity(self, t: float, line: VelocityLine) -> Sample:
         p = self.params
+        self._booting = False
         self._samples += 1
         self._rate.tick(t)
         if self._pending_mode is not None and t >= self._mode_settled_at:
@@ -338,6 +350,24 @@ class SensorSession:
         self._theta += line.omega * dt
         self._t_prev = t
 
+    def stale_marker(self, t: float) -> Sample | None:
+        """An invalid sample stamped ``t`` when the stream went stale; None otherwise.
+
+        Returned once per stale period: when the newest sample is valid but older than
+        ``stale_after`` at ``t`` [s] (link lost, device silent). The marker carries NaN
+        velocities, the integrated pose and ``valid = False``, so a consumer that looks only at
+        the newest message sees the loss; no old sample is ever re-issued as new. It becomes
+        the newest sample, so the next marker needs a new valid sample first.
+        """
+        with self._lock:
+            latest = self._latest
+            if latest is None or not latest.valid or t - latest.stamp <= self.params.stale_after:
+                return None
+            marker = Sample(t, NAN, NAN, NAN, self._x, self._y, self._theta, self.chip_mode,
+                            False)
+            self._latest = marker
+            return marker
+
     # ---------------------------------------------------------------- queries
 
     @property
@@ -349,6 +379,11 @@ class SensorSession:
     def chip_mode(self) -> int:
         """Chip mode of the device as far as the host knows (-1 while a switch settles)."""
         return -1 if self._pending_mode is not None else self._chip_mode
+
+    @property
+    def target_chip_mode(self) -> int:
+        """The mode the device is in or is switching to (never -1)."""
+        return self._pending_mode if self._pending_mode is not None else self._chip_mode
 
     @property
     def initialised(self) -> bool:
