@@ -24,7 +24,7 @@ setup(
     extras_require={'test': ['pytest']},
     entry_points={
         'console_scripts': [
-            # '<executable> = friction_models.<module>:main',
+            'sim_gripper = friction_models.sim_gripper_node:main',
             'friction_models_cli = friction_models.cli:main',
         ],
     },

@@ -1,0 +1,529 @@
+"""``sim_gripper``: the simulated gripper cell as a lifecycle node.
+
+It publishes exactly what ``gripper_driver`` and both ``velocity_sensor`` nodes publish on
+hardware (topics, types, frames, QoS, stamps at acquisition), accepts the same grasp-force
+command, and offers the same services (``gripper/bias_ft``, ``gripper/home``,
+``gripper/stop``, ``gripper/arm``, ``finger_k/slip/reset_pose``,
+``finger_k/slip/set_chip_mode``). In addition it publishes ``/clock``, the ground truth
+(``sim/state``, ``sim/object_pose``, ``sim/object_twist``, latched ``sim/true_contact``) and
+serves the arm/scene interface (``sim/move_gripper``, ``sim/reset_scene``, ``sim/reset``,
+``sim/apply_disturbance``).
+
+Timing: a simulation thread advances the physics in chunks of ``step_period`` wall seconds
+times ``realtime_factor`` and publishes every sensor event with its simulated acquisition
+stamp, then ``/clock``; nodes with ``use_sim_time`` therefore see a consistent clock at any
+real-time factor. All physics, sensors and the inner grasp-force loop (the driver's own
+controller code) are in `friction_models.core.sim_cell`.
+"""
+from __future__ import annotations
+
+import math
+import sys
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from geometry_msgs.msg import PoseStamped, TwistStamped, WrenchStamped
+from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
+from rclpy.callback_groups import ReentrantCallbackGroup
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState
+from slip_msgs.msg import (ContactProperties, GraspForceCommand, GripperStatus, MotorCommand,
+                           PlanarSlip, SimState, TransformArray)
+from slip_msgs.srv import ApplyDisturbance, MoveGripper, ResetScene, SetChipMode
+from std_srvs.srv import Trigger
+
+from friction_models import ros_conv
+from friction_models.core.presets import PresetError, load_presets, reference_presets
+from friction_models.core.sim_cell import SimCell, SimParams
+from slip_gripper_driver.common.diagnostics import DiagnosticsPublisher
+from slip_gripper_driver.common.node_main import run_node
+from slip_gripper_driver.common.params import ParameterBinding
+from slip_gripper_driver.common.qos import CLOCK, COMMAND, LATCHED, SENSOR_PUB, overridable
+from slip_gripper_driver.core.frames import finger_transforms, static_transforms
+from slip_gripper_driver.core.monitors import Level, Report
+from slip_gripper_driver.core.param_schema import ParameterError
+from slip_velocity_sensor.core.protocol import VelocityLine
+from slip_velocity_sensor.core.session import SensorSession, SessionParams
+
+
+@dataclass(frozen=True)
+class SimNodeParams:
+    """Node-level settings of ``sim_gripper`` (the physics is `SimParams`)."""
+
+    autostart: bool = field(default=True, metadata={
+        'read_only': True, 'description': 'configure and activate on start'})
+    publish_clock: bool = field(default=True, metadata={
+        'read_only': True, 'description': 'publish /clock with the simulated time'})
+    realtime_factor: float = field(default=1.0, metadata={
+        'unit': '-', 'range': (0.01, 100.0),
+        'description': 'simulated seconds per wall second'})
+    step_period: float = field(default=0.002, metadata={
+        'unit': 's', 'range': (0.0005, 0.05), 'read_only': True,
+        'description': 'wall time between simulation/publication ticks'})
+    max_catch_up: float = field(default=0.05, metadata={
+        'unit': 's', 'range': (0.001, 1.0),
+        'description': 'most simulated time advanced in one tick when behind (then drops)'})
+    preset: str = field(default='cardboard', metadata={
+        'read_only': True, 'description': 'initial object/contact preset'})
+    presets_file: str = field(default='', metadata={
+        'read_only': True,
+        'description': "extra presets YAML (absolute, or relative to this package's share "
+                       "directory); '' = the installed config/sim_presets.yaml"})
+    start_on_table: bool = field(default=True, metadata={
+        'read_only': True, 'description': 'initial scene: object standing on the table'})
+    ft_publish_decimation: int = field(default=2, metadata={
+        'unit': '-', 'range': (1, 100), 'read_only': True,
+        'description': 'publish every n-th F/T record (1 kHz box -> 500 Hz)'})
+    publish_raw_ft: bool = field(default=False, metadata={
+        'read_only': True, 'description': 'also publish finger_k/ft/raw'})
+    joint_states_decimation: int = field(default=5, metadata={
+        'unit': '-', 'range': (1, 100), 'read_only': True,
+        'description': 'telemetry lines per joint state and finger frame (500 -> 100 Hz)'})
+    ground_truth_rate: float = field(default=100.0, metadata={
+        'unit': 'Hz', 'range': (1.0, 1000.0), 'read_only': True,
+        'description': 'rate of sim/state, sim/object_pose, sim/object_twist'})
+    velocity_stale_after: float = field(default=0.050, metadata={
+        'unit': 's', 'range': (0.001, 10.0), 'read_only': True,
+        'description': 'a velocity sample older than this is stale'})
+    bias_timeout: float = field(default=2.0, metadata={
+        'unit': 's', 'range': (0.2, 60.0),
+        'description': 'longest simulated wait for gripper/bias_ft to complete'})
+
+
+class SimGripperNode(LifecycleNode):
+    """Lifecycle node wrapping `SimCell` with the hardware drivers' ROS interface."""
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__('sim_gripper', **kwargs)
+        self._node_params = ParameterBinding(self, SimNodeParams)
+        self._sim_params = ParameterBinding(self, SimParams)
+        self._cfg: SimNodeParams | None = None
+        self._cell: SimCell | None = None
+        self._lock = threading.RLock()
+        self._thread: threading.Thread | None = None
+        self._running = threading.Event()
+        self._pubs: dict[str, Any] = {}
+        self._endpoints: list[Any] = []
+        self._diag: DiagnosticsPublisher | None = None
+        self._sessions: tuple[SensorSession, SensorSession] | None = None
+        self._counters = {'line': 0, 'ft_1': 0, 'ft_2': 0, 'ticks': 0, 'late': 0,
+                          'rejected_commands': 0, 'dropped_sim_s': 0.0}
+        self._rtf_window: list[tuple[float, float]] = []
+        self._next_truth = 0.0
+
+    # ------------------------------------------------------------------ lifecycle
+    def on_configure(self, state: LifecycleState) -> TransitionCallbackReturn:
+        """Validate parameters, load presets, build the cell and the ROS endpoints."""
+        del state
+        try:
+            self._cfg = self._node_params.load()
+            sim = self._sim_params.load()
+            presets = self._load_presets(self._cfg.presets_file)
+            self._cell = SimCell(sim, presets, self._cfg.preset)
+            self._cell.reset(None, self._cfg.start_on_table)
+        except (ParameterError, PresetError, KeyError, ValueError) as exc:
+            self.get_logger().error(f'configure failed: {exc.args[0] if exc.args else exc}')
+            self._cell = None
+            return TransitionCallbackReturn.FAILURE
+        session_params = SessionParams(stale_after=self._cfg.velocity_stale_after,
+                                       expected_rate=sim.velocity_sensor.rate)
+        self._sessions = tuple(SensorSession(session_params, port=f'sim:finger_{k}',
+                                             expected_name=f'sensor_{k}') for k in (1, 2))
+        for s in self._sessions:
+            s.mark_initialised(calibration_source='simulation', calibration_uploaded=False,
+                               speed_term='zero')
+        self._create_endpoints()
+        self.get_logger().info(
+            f'configured: preset {self._cfg.preset!r}, model {sim.model}, physics dt '
+            f'{sim.physics_dt * 1e6:.0f} us, real-time factor {self._cfg.realtime_factor}')
+        return TransitionCallbackReturn.SUCCESS
+
+    def on_activate(self, state: LifecycleState) -> TransitionCallbackReturn:
+        """Publish the static frames and the truth, start the simulation thread."""
+        assert self._cell is not None
+        frames = self._cell.params.frames
+        self._pubs['static_frames'].publish(
+            ros_conv.transform_array_msg(static_transforms(frames), self._cell.t))
+        self._publish_true_contact()
+        self._running.set()
+        self._thread = threading.Thread(target=self._run, name='sim_gripper', daemon=True)
+        self._thread.start()
+        return super().on_activate(state)
+
+    def on_deactivate(self, state: LifecycleState) -> TransitionCallbackReturn:
+        """Stop the simulation (the simulated motor gets 0 V)."""
+        self._stop_thread()
+        if self._cell is not None:
+            with self._lock:
+                self._cell.stop()
+        return super().on_deactivate(state)
+
+    def on_cleanup(self, state: LifecycleState) -> TransitionCallbackReturn:
+        """Destroy the endpoints and the cell."""
+        del state
+        self._stop_thread()
+        self._destroy_endpoints()
+        self._cell = None
+        return TransitionCallbackReturn.SUCCESS
+
+    def on_shutdown(self, state: LifecycleState) -> TransitionCallbackReturn:
+        """Stop everything."""
+        del state
+        self._stop_thread()
+        self._destroy_endpoints()
+        return TransitionCallbackReturn.SUCCESS
+
+    def _stop_thread(self) -> None:
+        self._running.clear()
+        if self._thread is not None:
+            self._thread.join(timeout=5.0)
+            self._thread = None
+
+    # ------------------------------------------------------------------ setup
+    def _load_presets(self, file: str) -> dict[str, Any]:
+        if not file:
+            default = self._share() / 'config' / 'sim_presets.yaml'
+            return load_presets(default) if default.is_file() else reference_presets()
+        path = Path(file)
+        if not path.is_absolute():
+            path = self._share() / path
+        return load_presets(path)
+
+    @staticmethod
+    def _share() -> Path:
+        from ament_index_python.packages import get_package_share_directory
+        return Path(get_package_share_directory('friction_models'))
+
+    def _create_endpoints(self) -> None:
+        assert self._cell is not None and self._cfg is not None
+        opts = {'qos_overriding_options': overridable()}
+        pub = self.create_publisher
+        self._pubs = {
+            'status': pub(GripperStatus, 'gripper/status', SENSOR_PUB, **opts),
+            'motor': pub(MotorCommand, 'gripper/motor_command', SENSOR_PUB, **opts),
+            'joints': pub(JointState, 'gripper/joint_states', SENSOR_PUB, **opts),
+            'static_frames': pub(TransformArray, 'gripper/static_frames', LATCHED),
+            'finger_frames': pub(TransformArray, 'gripper/finger_frames', SENSOR_PUB, **opts),
+            'state': pub(SimState, 'sim/state', SENSOR_PUB, **opts),
+            'pose': pub(PoseStamped, 'sim/object_pose', SENSOR_PUB, **opts),
+            'object_twist': pub(TwistStamped, 'sim/object_twist', SENSOR_PUB, **opts),
+            'truth': pub(ContactProperties, 'sim/true_contact', LATCHED),
+        }
+        if self._cfg.publish_clock:
+            self._pubs['clock'] = pub(Clock, '/clock', CLOCK)
+        for k in (1, 2):
+            self._pubs[f'wrench_{k}'] = pub(WrenchStamped, f'finger_{k}/ft/wrench', SENSOR_PUB,
+                                            **opts)
+            if self._cfg.publish_raw_ft:
+                self._pubs[f'raw_{k}'] = pub(WrenchStamped, f'finger_{k}/ft/raw', SENSOR_PUB,
+                                             **opts)
+            self._pubs[f'twist_{k}'] = pub(TwistStamped, f'finger_{k}/slip/twist', SENSOR_PUB,
+                                           **opts)
+            self._pubs[f'slip_{k}'] = pub(PlanarSlip, f'finger_{k}/slip/state', SENSOR_PUB,
+                                          **opts)
+            self._endpoints += [
+                self.create_service(Trigger, f'finger_{k}/slip/reset_pose',
+                                    lambda req, res, k=k: self._on_reset_pose(k, res)),
+                self.create_service(SetChipMode, f'finger_{k}/slip/set_chip_mode',
+                                    lambda req, res, k=k: self._on_chip_mode(k, req, res)),
+            ]
+        self._endpoints += [
+            self.create_subscription(GraspForceCommand, 'gripper/grasp_force_cmd',
+                                     self._on_force_cmd, COMMAND),
+            self.create_service(Trigger, 'gripper/bias_ft', self._on_bias,
+                                callback_group=ReentrantCallbackGroup()),
+            self.create_service(Trigger, 'gripper/home', self._on_home),
+            self.create_service(Trigger, 'gripper/stop', self._on_stop),
+            self.create_service(Trigger, 'gripper/arm', self._on_arm),
+            self.create_service(Trigger, 'sim/reset', self._on_reset),
+            self.create_service(ResetScene, 'sim/reset_scene', self._on_reset_scene),
+            self.create_service(MoveGripper, 'sim/move_gripper', self._on_move),
+            self.create_service(ApplyDisturbance, 'sim/apply_disturbance', self._on_disturb),
+        ]
+        self._diag = DiagnosticsPublisher(self, hardware_id='simulation')
+        self._diag.add('realtime_factor', self._report_rtf)
+        self._diag.add('scenario', self._report_scenario)
+        for k, session in zip((1, 2), self._sessions or ()):
+            self._diag.add(f'velocity_sensor_{k}',
+                           lambda now, s=session: s.reports(self._sim_now())['rate'])
+
+    def _destroy_endpoints(self) -> None:
+        for ep in self._endpoints:
+            if hasattr(ep, 'callback') and hasattr(ep, 'srv_type'):
+                self.destroy_service(ep)
+            else:
+                self.destroy_subscription(ep)
+        self._endpoints = []
+        for p in self._pubs.values():
+            self.destroy_publisher(p)
+        self._pubs = {}
+        if self._diag is not None:
+            self._diag.destroy()
+            self._diag = None
+
+    # ------------------------------------------------------------------ simulation thread
+    def _sim_now(self) -> float:
+        cell = self._cell
+        return cell.t if cell is not None else 0.0
+
+    def _run(self) -> None:
+        assert self._cell is not None and self._cfg is not None
+        period = self._cfg.step_period
+        wall_prev = time.monotonic()
+        next_tick = wall_prev + period
+        while self._running.is_set():
+            now = time.monotonic()
+            cfg = self._node_params.value
+            with self._lock:
+                cell = self._cell
+                advance = (now - wall_prev) * cfg.realtime_factor
+                if advance > cfg.max_catch_up:  # fell behind: do not try to catch up forever
+                    self._counters['dropped_sim_s'] += advance - cfg.max_catch_up
+                    advance = cfg.max_catch_up
+                events = cell.advance(cell.t + advance)
+                self._publish_events(events)
+                self._publish_ground_truth()
+                if 'clock' in self._pubs:
+                    self._pubs['clock'].publish(Clock(clock=ros_conv.to_time(cell.t)))
+                self._rtf_window.append((now, cell.t))
+            wall_prev = now
+            self._counters['ticks'] += 1
+            delay = next_tick - time.monotonic()
+            if delay > 0.0:
+                time.sleep(delay)
+                next_tick += period
+            else:
+                if delay < -period:
+                    self._counters['late'] += 1
+                next_tick = time.monotonic() + period
+
+    def _publish_events(self, events: Any) -> None:
+        cell = self._cell
+        cfg = self._cfg
+        assert cell is not None and cfg is not None and self._sessions is not None
+        frames = cell.params.frames
+        for ft in events.ft:
+            key = f'ft_{ft.finger}'
+            self._counters[key] += 1
+            if self._counters[key] % cfg.ft_publish_decimation:
+                continue
+            frame = frames.frame_id(f'ft_sensor_{ft.finger}')
+            if ft.biased is not None:
+                self._pubs[f'wrench_{ft.finger}'].publish(
+                    ros_conv.wrench_msg(ft, ft.biased, frame))
+            if cfg.publish_raw_ft:
+                self._pubs[f'raw_{ft.finger}'].publish(ros_conv.wrench_msg(ft, ft.raw, frame))
+        for vel in events.velocity:
+            session = self._sessions[vel.finger - 1]
+            sample = session.handle_parsed(vel.stamp, VelocityLine(vel.vx, vel.vy, vel.omega))
+            if sample is None:
+                continue
+            frame = frames.frame_id(f'vel_sensor_{vel.finger}')
+            if sample.valid:
+                self._pubs[f'twist_{vel.finger}'].publish(ros_conv.twist_msg(sample, frame))
+            self._pubs[f'slip_{vel.finger}'].publish(ros_conv.planar_slip_msg(sample, frame))
+        if not events.telemetry:
+            return
+        status = cell.status()
+        prefix = frames.tf_prefix
+        for tel in events.telemetry:
+            self._counters['line'] += 1
+            self._pubs['motor'].publish(ros_conv.motor_command_msg(tel))
+            self._pubs['status'].publish(ros_conv.gripper_status_msg(
+                tel, status, self._counters['line'], ft_fresh=status.ft_biased))
+            if self._counters['line'] % cfg.joint_states_decimation == 0:
+                self._pubs['joints'].publish(ros_conv.joint_state_msg(tel, status, prefix))
+                opening = status.opening if math.isfinite(status.opening) else 0.0
+                self._pubs['finger_frames'].publish(ros_conv.transform_array_msg(
+                    finger_transforms(frames, opening), tel.stamp))
+
+    def _publish_ground_truth(self) -> None:
+        cell, cfg = self._cell, self._cfg
+        assert cell is not None and cfg is not None
+        if cell.t + 1e-9 < self._next_truth:
+            return
+        period = 1.0 / cfg.ground_truth_rate
+        # Absolute schedule (no drift from tick granularity); skip missed slots after a stall.
+        self._next_truth = max(self._next_truth + period, cell.t - period)
+        state = cell.state()
+        frame = cell.params.frames.frame_id('gripper_middle')
+        self._pubs['state'].publish(ros_conv.sim_state_msg(state, frame, self._rtf()))
+        self._pubs['pose'].publish(ros_conv.object_pose_msg(state, frame))
+        self._pubs['object_twist'].publish(ros_conv.object_twist_msg(state, frame))
+
+    def _publish_true_contact(self) -> None:
+        cell = self._cell
+        assert cell is not None
+        self._pubs['truth'].publish(ros_conv.true_contact_msg(cell.true_contact(),
+                                                              cell.preset.name, cell.t))
+
+    def _rtf(self) -> float:
+        window = self._rtf_window
+        while len(window) > 2 and window[-1][0] - window[0][0] > 1.0:
+            window.pop(0)
+        if len(window) < 2 or window[-1][0] <= window[0][0]:
+            return math.nan
+        return (window[-1][1] - window[0][1]) / (window[-1][0] - window[0][0])
+
+    # ------------------------------------------------------------------ callbacks
+    def _on_force_cmd(self, msg: GraspForceCommand) -> None:
+        stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+        with self._lock:
+            if self._cell is None:
+                return
+            ok, text = self._cell.command_grasp_force(msg.force, stamp, msg.timeout)
+        if not ok:
+            self._counters['rejected_commands'] += 1
+            self.get_logger().warn(f'grasp-force command rejected: {text}',
+                                   throttle_duration_sec=1.0)
+
+    def _with_cell(self, res: Any, action: Any) -> Any:
+        with self._lock:
+            if self._cell is None:
+                res.success, res.message = False, 'simulation not configured'
+                return res
+            out = action(self._cell)
+        res.success, res.message = out[0], out[1]
+        return res
+
+    def _on_bias(self, req: Trigger.Request, res: Trigger.Response) -> Trigger.Response:
+        """Start a host-side bias and answer when it completed (in simulated time).
+
+        Runs in its own reentrant callback group on a multithreaded executor, so waiting here
+        blocks neither the other callbacks nor the simulation thread.
+        """
+        del req
+        with self._lock:
+            if self._cell is None:
+                res.success, res.message = False, 'simulation not configured'
+                return res
+            ok, text = self._cell.bias_ft()
+            deadline = self._cell.t + self._node_params.value.bias_timeout
+        if not ok:
+            res.success, res.message = False, text
+            return res
+        while self._running.is_set():
+            with self._lock:
+                cell = self._cell
+                if cell is None:
+                    break
+                if cell.ft_biased and not cell.bias_in_progress:
+                    res.success, res.message = True, f'biased both F/T sensors ({text})'
+                    return res
+                if cell.t > deadline:
+                    break
+            time.sleep(0.002)
+        res.success, res.message = False, 'bias did not complete (simulation stopped or timed out)'
+        return res
+
+    def _on_home(self, req: Trigger.Request, res: Trigger.Response) -> Trigger.Response:
+        del req
+        return self._with_cell(res, lambda c: c.home())
+
+    def _on_stop(self, req: Trigger.Request, res: Trigger.Response) -> Trigger.Response:
+        del req
+        def stop(cell: SimCell) -> tuple[bool, str]:
+            cell.stop()
+            return True, 'stopped: 0 V, target cleared until the next command'
+        return self._with_cell(res, stop)
+
+    def _on_arm(self, req: Trigger.Request, res: Trigger.Response) -> Trigger.Response:
+        del req
+        res.success, res.message = True, 'armed (the simulated link never faults)'
+        return res
+
+    def _reset_sessions(self) -> None:
+        for s in self._sessions or ():
+            s.reset_pose()
+
+    def _on_reset(self, req: Trigger.Request, res: Trigger.Response) -> Trigger.Response:
+        del req
+        cfg = self._cfg
+        res = self._with_cell(res, lambda c: c.reset(None, cfg.start_on_table if cfg else True))
+        if res.success:
+            self._reset_sessions()
+        return res
+
+    def _on_reset_scene(self, req: ResetScene.Request,
+                        res: ResetScene.Response) -> ResetScene.Response:
+        res = self._with_cell(res, lambda c: c.reset(req.preset or None, req.object_on_table))
+        if res.success:
+            self._reset_sessions()
+            self._publish_true_contact()
+        return res
+
+    def _on_move(self, req: MoveGripper.Request, res: MoveGripper.Response
+                 ) -> MoveGripper.Response:
+        with self._lock:
+            if self._cell is None:
+                res.success, res.message = False, 'simulation not configured'
+                return res
+            ok, text, end = self._cell.move_gripper(req.lift, req.lateral, req.rotation,
+                                                    req.duration)
+        res.success, res.message, res.expected_end = ok, text, float(end)
+        return res
+
+    def _on_disturb(self, req: ApplyDisturbance.Request,
+                    res: ApplyDisturbance.Response) -> ApplyDisturbance.Response:
+        return self._with_cell(res, lambda c: c.apply_disturbance(
+            req.force.x, req.force.y, req.torque, req.duration))
+
+    def _on_reset_pose(self, finger: int, res: Trigger.Response) -> Trigger.Response:
+        if self._sessions is None:
+            res.success, res.message = False, 'simulation not configured'
+            return res
+        with self._lock:
+            self._sessions[finger - 1].reset_pose()
+        res.success, res.message = True, f'finger {finger}: integrated pose reset'
+        return res
+
+    def _on_chip_mode(self, finger: int, req: SetChipMode.Request,
+                      res: SetChipMode.Response) -> SetChipMode.Response:
+        if req.chip == SetChipMode.Request.FUSED:
+            res.success, res.message = True, f'finger {finger}: fused mode'
+        else:
+            res.success = False
+            res.message = (f'finger {finger}: single-chip mode {req.chip} is not simulated '
+                           '(fused output only)')
+        return res
+
+    # ------------------------------------------------------------------ diagnostics
+    def _report_rtf(self, now: float) -> Report:
+        del now
+        cfg = self._node_params.value
+        rtf = self._rtf()
+        ticks, late = self._counters['ticks'], self._counters['late']
+        values = (('realtime_factor', f'{rtf:.3f}'), ('target', f'{cfg.realtime_factor:.3f}'),
+                  ('ticks', str(ticks)), ('late_ticks', str(late)),
+                  ('dropped_sim_s', f'{self._counters["dropped_sim_s"]:.3f}'),
+                  ('rejected_commands', str(self._counters['rejected_commands'])))
+        if not math.isfinite(rtf):
+            return Report(Level.WARN, 'not running', values)
+        if abs(rtf - cfg.realtime_factor) > 0.1 * cfg.realtime_factor:
+            return Report(Level.WARN, f'real-time factor {rtf:.2f} below target', values)
+        return Report(Level.OK, 'running', values)
+
+    def _report_scenario(self, now: float) -> Report:
+        del now
+        cell = self._cell
+        if cell is None:
+            return Report(Level.STALE, 'not configured')
+        with self._lock:
+            st = cell.state()
+        values = (('preset', st.preset), ('in_grasp', str(st.in_grasp)),
+                  ('on_table', str(st.on_table)), ('dropped', str(st.dropped)),
+                  ('sim_time_s', f'{st.stamp:.3f}'))
+        level = Level.WARN if st.dropped else Level.OK
+        return Report(level, 'object dropped' if st.dropped else 'ok', values)
+
+
+def main(args: list[str] | None = None) -> int:
+    """Console script ``sim_gripper``."""
+    return run_node(SimGripperNode, args, multithreaded=True)
+
+
+if __name__ == '__main__':
+    sys.exit(main())
