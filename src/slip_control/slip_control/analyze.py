@@ -160,6 +160,27 @@ def _middle_velocity(data: dict[str, Any], t0: float, t1: float,
     return w1.t, v1, v2, w1, w2
 
 
+def _trapezoid_target(seg: Series, accel_fraction: float = 0.2) -> float:
+    """Commanded distance or angle P of a tracked trapezoid (control_and_estimation §4.3).
+
+    The controller may stop (x ≥ P) before the reference reaches P, so P is recovered from the
+    reference itself: acceleration A from the first samples, cruise speed v_c, acceleration
+    time t_c = v_c/A = a·T, and P = v_c·T·(1 − a) = v_c·t_c·(1 − a)/a (4·v_c·t_c for a = 0.2).
+    """
+    vel = np.abs(seg.cols['ref_vel'])
+    pos = np.abs(seg.cols['ref_pos'])
+    if vel.size < 4 or vel.max() <= 0.0:
+        return float(pos.max(initial=0.0))
+    v_c = float(vel.max())
+    i_c = int(np.argmax(vel >= 0.999 * v_c))
+    k = max(1, i_c // 2)
+    if seg.t[k] <= seg.t[0] or vel[k] <= vel[0]:
+        return float(pos.max())
+    accel = float((vel[k] - vel[0]) / (seg.t[k] - seg.t[0]))
+    t_c = v_c / accel
+    return max(v_c * t_c * (1.0 - accel_fraction) / accel_fraction, float(pos.max()))
+
+
 def _slip(data: dict[str, Any], frames: FrameParams) -> list[dict[str, Any]]:
     from slip_control.core.metrics import (linear_slip_distance, rotational_slip_angle,
                                            tracking_errors)
@@ -173,7 +194,7 @@ def _slip(data: dict[str, Any], frames: FrameParams) -> list[dict[str, Any]]:
                               seg.cols['meas_vel'])
         item: dict[str, Any] = {
             'mode': MODE_NAMES[mode], 't_start': t0, 't_end': t1,
-            'target': float(seg.cols['ref_pos'].max(initial=0.0)),
+            'target': _trapezoid_target(seg),
             'final_measured': float(seg.cols['meas_pos'][-1]), 'tracking': asdict(err),
             'force_range': [float(seg.cols['force'].min()), float(seg.cols['force'].max())]}
         vel = _middle_velocity(data, t0, t1, frames)
