@@ -1,11 +1,20 @@
 # SPDX-License-Identifier: Apache-2.0
-"""Cost of one slip-controller step and one estimator step (ROS-free cores), in µs.
+"""Cost of one slip-controller step and one estimator step (ROS-free cores), in µs; and, with
+``--dds``, the sensor-message-in → grasp-force-command-out latency of the slip_controller node.
 
-Prints p50/p99/max per mode; never asserts (target from issue 7: controller step ≤ 100 µs).
-The inputs are pre-built snapshots from the synthetic streams, so only the core step is timed.
+Prints p50/p99/max per mode; never asserts (targets from issue 7: controller step ≤ 100 µs in
+the core; DDS in → out p99 ≤ 5 ms). The core inputs are pre-built snapshots from the synthetic
+streams, so only the core step is timed.
 
-Usage: python bench/bench_slip_control.py [--quick]
-(run from the repository root; `make bench` passes --quick).
+``--dds`` starts the slip_controller node in a subprocess (its YAML plus the shared cell.yaml),
+publishes valid contact properties, switches it to HOLD and plays 500 Hz wrenches and 120 Hz
+twists (both fingers, stamped with the system clock) from this process. Latency = time from
+publishing a finger-1 twist (the control trigger) to receiving the command it produced, both
+on this process's monotonic clock, so it includes two DDS hops, both executors and the step.
+
+Usage: python bench/bench_slip_control.py [--quick] [--dds]
+(run from the repository root; `make bench` passes --quick; --dds needs the workspace
+environment: tools/run_ros.sh .venv/bin/python bench/bench_slip_control.py --dds).
 """
 from __future__ import annotations
 
@@ -75,11 +84,136 @@ def _props() -> ContactProperties:
     return ContactProperties(f, f, ContactSource.ESTIMATED)
 
 
+def _dds(n_twists: int) -> None:
+    """Sensor message in → grasp-force command out through DDS, controller in a subprocess."""
+    import os
+    import tempfile
+
+    import rclpy
+    from geometry_msgs.msg import TwistStamped, WrenchStamped
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.node import Node
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+    from slip_control.ros_conv import ns_to_stamp, properties_to_msg
+    from slip_gripper_driver.common.calls import call_service, spin_until
+    from slip_gripper_driver.common.qos import LATCHED, SENSOR_PUB
+    from slip_gripper_driver.testing import NodeProcess
+    from slip_msgs.msg import ContactProperties as ContactPropertiesMsg
+    from slip_msgs.msg import GraspForceCommand
+    from slip_msgs.srv import SetSlipMode
+
+    if os.environ.get('ROS_AUTOMATIC_DISCOVERY_RANGE') != 'LOCALHOST':
+        sys.exit('--dds needs the workspace environment: tools/run_ros.sh '
+                 '.venv/bin/python bench/bench_slip_control.py --dds')
+    cfg = ROOT / 'src' / 'slip_control' / 'config' / 'slip_controller.yaml'
+    cell = ROOT / 'src' / 'slip_gripper_driver' / 'config' / 'cell.yaml'
+    log = Path(tempfile.mkdtemp(prefix='bench_slip_dds_')) / 'slip_controller.log'
+    proc = NodeProcess.python_module('slip_control.slip_controller_node', [
+        '--ros-args', '-r', '__node:=slip_controller', '--params-file', str(cell),
+        '--params-file', str(cfg)], log)
+    rclpy.init()
+    node = Node('bench_slip_dds')
+    ex = SingleThreadedExecutor()
+    ex.add_node(node)
+    wpub = [node.create_publisher(WrenchStamped, f'finger_{k}/ft/wrench', SENSOR_PUB)
+            for k in (1, 2)]
+    tpub = [node.create_publisher(TwistStamped, f'finger_{k}/slip/twist', SENSOR_PUB)
+            for k in (1, 2)]
+    ppub = node.create_publisher(ContactPropertiesMsg, 'contact/properties', LATCHED)
+    arrivals: list[int] = []
+    node.create_subscription(
+        GraspForceCommand, 'gripper/grasp_force_cmd',
+        lambda m: arrivals.append(time.perf_counter_ns()),
+        QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE))
+    clock = node.get_clock()
+
+    def wrenches() -> None:
+        stamp = ns_to_stamp(clock.now().nanoseconds)
+        for k, pub in enumerate(wpub, start=1):
+            m = WrenchStamped()
+            m.header.stamp, m.header.frame_id = stamp, f'ft_sensor_{k}'
+            m.wrench.force.x, m.wrench.force.y, m.wrench.force.z = 0.3, 0.8, -6.0
+            m.wrench.torque.z = 1e-3
+            pub.publish(m)
+
+    def twists() -> int:
+        stamp = ns_to_stamp(clock.now().nanoseconds)
+        msgs = []
+        for k in (2, 1):
+            m = TwistStamped()
+            m.header.stamp, m.header.frame_id = stamp, f'vel_sensor_{k}'
+            m.twist.linear.x = 0.001
+            msgs.append((k, m))
+        tpub[1].publish(msgs[0][1])
+        t0 = time.perf_counter_ns()
+        tpub[0].publish(msgs[1][1])
+        return t0
+
+    def play(n: int, latencies: list[int] | None) -> int:
+        lost = 0
+        period = 1.0 / 120.0
+        for _ in range(n):
+            t_next = time.perf_counter() + period
+            wrenches()
+            before = len(arrivals)
+            t0 = twists()
+            got = spin_until(ex, lambda: len(arrivals) > before, 0.05, step_s=0.001)
+            if got and latencies is not None:
+                latencies.append(arrivals[before] - t0)
+            elif not got:
+                lost += 1
+            for k in (1, 2, 3):       # the remaining 500 Hz wrench samples of this period
+                t_w = t_next - period + k * 0.002
+                while time.perf_counter() < t_w:
+                    ex.spin_once(timeout_sec=max(0.0, t_w - time.perf_counter()))
+                wrenches()
+            while time.perf_counter() < t_next:
+                ex.spin_once(timeout_sec=max(0.0, t_next - time.perf_counter()))
+        return lost
+
+    try:
+        props = _props()
+        ppub.publish(properties_to_msg(props, ns_to_stamp(clock.now().nanoseconds)))
+        client = node.create_client(SetSlipMode, 'slip_control/set_mode')
+        ok = False
+        deadline = time.monotonic() + 20.0
+        while not ok and time.monotonic() < deadline:
+            res = call_service(ex, client, SetSlipMode.Request(mode=SetSlipMode.Request.HOLD),
+                               10.0)
+            ok = res is not None and res.success
+            if not ok:
+                ppub.publish(properties_to_msg(props, ns_to_stamp(clock.now().nanoseconds)))
+                spin_until(ex, lambda: False, 0.2)
+        if not ok:
+            sys.exit(f'slip_controller did not accept HOLD; log: {log}')
+        play(240, None)                                   # warm-up (2 s)
+        lat: list[int] = []
+        lost = play(n_twists, lat)
+    finally:
+        ex.shutdown()
+        node.destroy_node()
+        rclpy.try_shutdown()
+        proc.stop()
+    a = np.asarray(lat, dtype=np.float64) / 1e6
+    print(f'slip_controller DDS latency: finger-1 twist published -> grasp-force command '
+          f'received ({len(a)} samples at 120 Hz with 500 Hz wrenches, {lost} without a '
+          'command within 50 ms)')
+    print(f'{"":<10}{"p50 ms":>9}{"p90 ms":>9}{"p99 ms":>9}{"max ms":>9}')
+    print(f'{"in->out":<10}{np.percentile(a, 50):>9.3f}{np.percentile(a, 90):>9.3f}'
+          f'{np.percentile(a, 99):>9.3f}{a.max():>9.3f}')
+    print(f'p99 {np.percentile(a, 99):.3f} ms (target <= 5 ms)')
+
+
 def main() -> None:
     """Run the benchmarks and print a table."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument('--quick', action='store_true', help='fewer repetitions')
+    ap.add_argument('--dds', action='store_true',
+                    help='only the DDS in->out latency of the slip_controller node')
     args = ap.parse_args()
+    if args.dds:
+        _dds(600 if args.quick else 3600)
+        return
     n, repeats = (960, 3) if args.quick else (4800, 10)
 
     p = SlipControllerParams()

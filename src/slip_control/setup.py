@@ -31,6 +31,10 @@ setup(
             'slip_cli = slip_control.slip_cli:main',
             'slip_analyze = slip_control.analyze:main',
             'slip_demo = slip_control.demo:main',
+            'slip_evaluate = slip_control.evaluate_cli:main',
+            'contact_estimator = slip_control.contact_estimator_node:main',
+            'slip_controller = slip_control.slip_controller_node:main',
+            'experiment_runner = slip_control.experiment_runner_node:main',
         ],
     },
 )

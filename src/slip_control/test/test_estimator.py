@@ -358,3 +358,27 @@ def test_online_estimation_in_closed_loop_stick_slip(seed: int) -> None:
     after_linear, after_rotation = errors
     assert abs(after_linear[0]) <= 0.03 and abs(after_linear[1]) <= 0.03
     assert abs(after_rotation[2]) <= 0.0004 and abs(after_rotation[3]) <= 0.0004
+
+
+def test_start_precheck_and_deferred_params(snap: Callable[..., SensorSnapshot]) -> None:
+    from dataclasses import replace
+
+    from slip_control.core.estimator import start_precheck
+    from slip_control.core.signals import SensorSnapshot as Snap
+    p = ContactEstimatorParams()
+    ok, why = start_precheck(Snap(), 1.0, p)
+    assert not ok and 'no samples received yet from: finger 1 wrench' in why
+    ok, why = start_precheck(snap(1.0, normal=0.2), 1.0, p)
+    assert not ok and 'no contact' in why and '0.200 N (finger 1)' in why
+    ok, why = start_precheck(snap(1.0, normal=5.0), 2.0, p)
+    assert not ok and 'stale sensor data' in why and '1.000 s old' in why
+    ok, why = start_precheck(snap(1.0, normal=5.0, v=(math.nan, 0.0)), 1.0, p)
+    assert not ok and 'invalid' in why and 'finger 1 velocity' in why
+    assert start_precheck(snap(1.0, normal=5.0), 1.1, p) == (True, '')
+
+    est = ContactEstimator(p)
+    assert est.start(EstimationPhase.LINEAR, 1.0, 0.0).accepted
+    newer = replace(p, min_normal_force=2.0)
+    assert not est.update_params(newer) and est.params is p       # phase keeps its snapshot
+    est.poll(1.5)
+    assert est.update_params(newer) and est.params is newer

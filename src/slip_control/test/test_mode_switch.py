@@ -154,3 +154,30 @@ def test_finished_trajectory_publishes_hold_in_the_same_step(
     # 2·max(1/0.4, 2) + 100·0.01 = 6 N, rising at once above the slip force.
     assert out.force == pytest.approx(6.0)
     assert math.isclose(out.tracking.force_cmd, 6.0)
+
+
+def test_with_params_rebuilds_idle_modes_and_defers_trajectories(
+        make_props: MakeProps, params: SlipControllerParams,
+        snap: Callable[..., SensorSnapshot]) -> None:
+    from dataclasses import replace
+
+    from slip_control.core.mode_switch import hold_successor, with_params
+    props = make_props()
+    new = replace(params, hold=replace(params.hold, margin=3.0))
+    hold = build_controller(ModeRequest(int(SlipMode.HOLD)), props, params, 0.0).controller
+    assert hold is not None
+    hold.step(snap(0.0, f=(1.0, 0.0)), 0.001)
+    rebuilt = with_params(hold, new)
+    assert isinstance(rebuilt, HoldController) and rebuilt.params.hold.margin == 3.0
+    assert rebuilt.last_force == hold.last_force               # no drop at the swap
+    hinge = with_params(HingeController(params, hold.contact, initial_force=7.0), new)
+    assert isinstance(hinge, HingeController) and hinge.last_force == 7.0
+    assert isinstance(with_params(OffController(params), new), OffController)
+    lin = build_controller(ModeRequest(LIN, duration=2.0, distance=0.02), props, params,
+                           0.0).controller
+    assert lin is not None and with_params(lin, new) is None   # running: keep the snapshot
+
+    succ, result = hold_successor(lin, 'canceled', 0.5)
+    assert isinstance(succ, HoldController) and succ.params is params
+    assert result is not None and result.message == 'canceled' and not lin.goal_active
+    assert hold_successor(hold, 'canceled', 0.5)[1] is None

@@ -249,3 +249,62 @@ def test_force_tracking_profile_and_playback() -> None:
     forces = [c[2] for c in cell.calls if c[1] == 'force']
     assert forces[0] == 5.0 and forces[-1] == 0.0 and len(forces) > 20000
     assert max(forces) == 25.0 and not cell.recording
+
+
+class _Abandoned:
+    """A pending call that never answers and records whether it was cancelled."""
+
+    def __init__(self) -> None:
+        self.cancelled = False
+
+    def done(self) -> bool:
+        return False
+
+    def result(self) -> CallResult:
+        raise AssertionError('never done')
+
+    def describe(self) -> str:
+        return 'service contact/start not available'
+
+    def cancel(self) -> None:
+        self.cancelled = True
+
+
+def test_timeout_names_what_it_waited_for_and_cancels_the_call() -> None:
+    cell = FakeCell(props=_valid_props())
+    pending = _Abandoned()
+    cell.start_estimation = lambda phase, duration, t: pending  # type: ignore[method-assign]
+    seq = build_sequence('est_contact', P)
+    prog = _run(SequenceRunner(seq, cell, P, flags=CellFlags(at_pickup=True, holding=True)),
+                cell, t_max=100.0, dt=0.05)
+    assert 'timed out after 30.0 s (service contact/start not available)' in prog.message
+    assert pending.cancelled
+
+
+def test_abort_skips_main_steps_but_runs_cleanup() -> None:
+    cell = FakeCell(props=_valid_props())
+    seq = build_sequence('hold_mode', P, duration=10.0, recording_name='hold_x')
+    runner = SequenceRunner(seq, cell, P, flags=CellFlags(holding=True))
+    t = 0.0
+    while t < 1.0:
+        cell.now = t
+        runner.poll(t)
+        t += 0.01
+    assert cell.recording and not runner.finished
+    runner.abort('canceled by the client', t)
+    prog = _run(runner, cell)
+    assert prog.finished and not prog.success and not cell.recording
+    assert "hold_mode: aborted during 'hold': canceled by the client" == prog.message
+    assert prog.bag_path == 'bags/hold_x'
+
+
+def test_fast_poll_only_during_the_force_profile() -> None:
+    cell = FakeCell()
+    runner = SequenceRunner(build_sequence('force_tracking_test', P), cell, P)
+    seen = set()
+    t = 0.0
+    while not runner.poll(t).finished:
+        seen.add((runner.progress().phase, runner.fast_poll))
+        cell.now = t = t + 0.01
+    assert ('force test: profile', True) in seen
+    assert all(not fast for phase, fast in seen if phase != 'force test: profile')

@@ -130,9 +130,9 @@ def test_parameter_defaults_follow_the_spec_tables() -> None:
     assert c['trajectory.accel_fraction'] == 0.2 and c['dt_max'] == 0.1
     assert 'frames.ft_1_yaw' in c
     e = flatten(ContactEstimatorParams())
-    assert (e['linear.max_abs_omega'], e['linear.static_speed'], e['rotational.max_speed'],
-            e['r_min'], e['r_max'], e['online.enabled']) == (0.1, 0.002, 0.005, 0.001, 0.05,
-                                                            False)
+    got = (e['linear.max_abs_omega'], e['linear.static_speed'], e['rotational.max_speed'],
+           e['r_min'], e['r_max'], e['online.enabled'])
+    assert got == (0.1, 0.002, 0.005, 0.001, 0.05, False)
     r = flatten(ExperimentRunnerParams())
     assert r['pickup.position'] == (-0.10, -0.85, 0.23) and r['release.force'] == -8.0
     assert r['estimation.twist_angle'] == pytest.approx(math.radians(10.0), abs=1e-5)

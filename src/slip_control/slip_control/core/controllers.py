@@ -367,9 +367,21 @@ class HoldController(SlipController):
 
 
 class HingeController(SlipController):
-    """HINGE (mode 3): stop translation, let the object pivot (§4.7). No stop condition."""
+    """HINGE (mode 3): stop translation, let the object pivot (§4.7). No stop condition.
+
+    Args:
+        params: Controller parameters.
+        contact: Contact properties (``μ_c`` used).
+        initial_force: Last force of the controller this one replaces [N] (handed on to the
+            HOLD successor if the inputs go stale before the first hinge step).
+    """
 
     mode = SlipMode.HINGE
+
+    def __init__(self, params: SlipControllerParams, contact: ControlContact,
+                 initial_force: float | None = None) -> None:
+        super().__init__(params, contact)
+        self._out = initial_force
 
     def step(self, inputs: SensorSnapshot, t: float) -> ControlOutput:
         """Hinge law; stale inputs hand over to HOLD (safe hold) in the same step."""

@@ -479,6 +479,47 @@ class EstimatorDiagnostics:
     last_message: str
 
 
+def start_precheck(inputs: SensorSnapshot, t: float,
+                   params: ContactEstimatorParams) -> tuple[bool, str]:
+    """Whether a LINEAR or ROTATIONAL phase started at ``t`` can collect anything (CE-4).
+
+    Refuses (so the caller answers ``accepted = false`` with the reason instead of letting the
+    phase run into a silent empty fit) when a stream never delivered, is older than
+    ``start_max_age``, is non-finite, or when either pad has ``f_n < min_normal_force``
+    ("no contact").
+
+    Args:
+        inputs: Latest samples of both fingers.
+        t: Request time [s] (same clock as the stamps).
+        params: Estimator parameters.
+
+    Returns:
+        ``(ok, message)``.
+    """
+    streams = (('finger 1 wrench', inputs.wrench_1), ('finger 2 wrench', inputs.wrench_2),
+               ('finger 1 velocity', inputs.twist_1), ('finger 2 velocity', inputs.twist_2))
+    missing = [name for name, s in streams if s is None]
+    if missing:
+        return False, 'no samples received yet from: ' + ', '.join(missing)
+    old = [f'{name} ({t - s.stamp:.3f} s old)' for name, s in streams
+           if s is not None and t - s.stamp > params.start_max_age]
+    if old:
+        return False, (f'stale sensor data (start_max_age = {params.start_max_age} s): '
+                       + ', '.join(old))
+    w1, w2, v1, v2 = inputs.wrench_1, inputs.wrench_2, inputs.twist_1, inputs.twist_2
+    assert w1 is not None and w2 is not None and v1 is not None and v2 is not None
+    checks = (('finger 1 wrench', w1.finite()), ('finger 2 wrench', w2.finite()),
+              ('finger 1 velocity', v1.usable()), ('finger 2 velocity', v2.usable()))
+    bad = [name for name, ok in checks if not ok]
+    if bad:
+        return False, 'invalid (non-finite or flagged) samples from: ' + ', '.join(bad)
+    f1, f2 = w1.normal_force, w2.normal_force
+    if min(f1, f2) < params.min_normal_force:
+        return False, (f'no contact: f_n = {f1:.3f} N (finger 1), {f2:.3f} N (finger 2); both '
+                       f'pads need f_n >= min_normal_force = {params.min_normal_force} N')
+    return True, ''
+
+
 class ContactEstimator:
     """Contact-property estimator: phases, gating, fits, online update, presets (§3).
 
@@ -518,6 +559,17 @@ class ContactEstimator:
     def phase(self) -> EstimationPhase:
         """Current phase."""
         return self._phase
+
+    def update_params(self, params: ContactEstimatorParams) -> bool:
+        """Swap in a new parameter snapshot if idle; ``False`` = retry after the phase ends.
+
+        A running phase (including ONLINE) keeps the snapshot it started with, so its gates
+        and fit limits never change half-way.
+        """
+        if self._phase != EstimationPhase.IDLE:
+            return False
+        self._p = params
+        return True
 
     def get_properties(self) -> tuple[ContactProperties, bool, str]:
         """``GetContactProperties``: ``(properties, valid, message)``."""
@@ -734,9 +786,9 @@ class ContactEstimator:
                 n_used = fit.n
                 need = p.min_samples_rotational
             attempt.append(fc)
-            notes.append(f'finger {k}: ' + (_ok_note(phase, fc) if ok else
-                                             _fail_note(phase, fc, c, n_used, need, p,
-                                                        self._phase_stale)))
+            note = _ok_note(phase, fc) if ok else _fail_note(phase, fc, c, n_used, need, p,
+                                                             self._phase_stale)
+            notes.append(f'finger {k}: {note}')
         f1, f2 = attempt
         flag = 'linear_valid' if phase == EstimationPhase.LINEAR else 'rotational_valid'
         valid1, valid2 = getattr(f1, flag), getattr(f2, flag)

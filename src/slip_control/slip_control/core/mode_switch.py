@@ -203,7 +203,7 @@ def build_controller(request: ModeRequest, props: ContactProperties | None,
         controller = HoldController(params, contact, initial_force=last)
         text = 'HOLD'
     elif mode == SlipMode.HINGE:
-        controller = HingeController(params, contact)
+        controller = HingeController(params, contact, initial_force=last)
         text = 'HINGE'
     elif mode == SlipMode.LINEAR:
         dx, dy = request.direction[0], request.direction[1]
@@ -223,3 +223,49 @@ def build_controller(request: ModeRequest, props: ContactProperties | None,
     if preset:
         text += f' (WARN: preset {contact.preset_name!r} in use)'
     return SwitchOutcome(True, text, controller, preempted=preempted, preset_in_use=preset)
+
+
+def with_params(controller: SlipController,
+                params: SlipControllerParams) -> SlipController | None:
+    """The same mode rebuilt on a new parameter snapshot (live tuning between steps).
+
+    OFF, HOLD and HINGE carry no state beyond their last output, so they are rebuilt at once
+    (the last output is handed on, so the force never drops in one step). A running LINEAR or
+    ROTATIONAL trajectory keeps its snapshot: ``None`` tells the caller to retry after it ends
+    (its HOLD successor is then rebuilt). A finished trajectory becomes its HOLD successor.
+
+    Args:
+        controller: Controller currently in charge.
+        params: New validated parameters.
+
+    Returns:
+        The controller to swap in, or ``None`` to defer.
+    """
+    if controller.goal_active:
+        return None
+    last = controller.last_force
+    if isinstance(controller, OffController):
+        return OffController(params, controller.contact)
+    if isinstance(controller, HingeController):
+        return HingeController(params, controller.contact, initial_force=last)
+    return HoldController(params, controller.contact, initial_force=last)
+
+
+def hold_successor(controller: SlipController, message: str,
+                   t: float) -> tuple[HoldController, SlipResult | None]:
+    """End ``controller`` (e.g. an ``ExecuteSlip`` cancel) and build its HOLD successor.
+
+    Same hand-over as a finished trajectory (§4.1): the HOLD controller starts from the last
+    output, with the contact of the ended controller (``D = ft`` when its ``r`` is unknown).
+
+    Args:
+        controller: Controller currently in charge.
+        message: Result message of an aborted trajectory ("canceled", ...).
+        t: Time of the hand-over [s].
+
+    Returns:
+        ``(hold, result)``; ``result`` is ``None`` when no trajectory was running.
+    """
+    result = controller.abort(message, t)
+    return HoldController(controller.params, controller.contact,
+                          initial_force=controller.last_force), result

@@ -123,6 +123,9 @@ class ContactEstimatorParams:
     sync_tolerance: float = _f(0.020, 's', 0.0, 1.0,
                                'finger-2 velocity stamp within this of finger 1')
     ft_stale_after: float = _f(0.020, 's', 0.0, 1.0, 'F/T samples older than this are stale')
+    start_max_age: float = _f(0.5, 's', 0.001, 60.0,
+                              '(addition) contact/start refuses a LINEAR/ROTATIONAL phase when '
+                              'a sensor stream is missing or its latest sample is older')
     online: EstimatorOnlineParams = _group(EstimatorOnlineParams)
     preset_file: str = field(default='', metadata={
         'read_only': True, 'description': 'CSV or YAML file with contact presets'})
@@ -298,14 +301,22 @@ class ResetJointsParams:
 
 @dataclass(frozen=True)
 class ForceWaitParams:
-    """A grasp-force command followed by a wait."""
+    """A grasp-force command followed by a wait (``grasp``)."""
 
     force: float = _f(10.0, 'N', -20.0, 40.0, 'grasp-force command')
     wait: float = _f(2.0, 's', 0.0, 60.0, 'wait after the command')
 
 
-def _release_defaults() -> ForceWaitParams:
-    return ForceWaitParams(force=-8.0, wait=1.0)
+@dataclass(frozen=True)
+class ReleaseParams:
+    """The opening command of ``release`` followed by a wait.
+
+    A class of its own (not ``ForceWaitParams`` with other defaults): the parameter schema
+    declares nested groups from their class defaults.
+    """
+
+    force: float = _f(-8.0, 'N', -20.0, 40.0, 'opening grasp-force command (< 0)')
+    wait: float = _f(1.0, 's', 0.0, 60.0, 'wait after the command')
 
 
 @dataclass(frozen=True)
@@ -351,8 +362,10 @@ class RecordingParams:
         'gripper/grasp_force_cmd', 'gripper/motor_command', 'gripper/status',
         'finger_1/ft/wrench', 'finger_2/ft/wrench', 'finger_1/slip/twist',
         'finger_2/slip/twist', 'gripper/static_frames', 'gripper/finger_frames',
-        'slip_control/tracking', 'slip_control/state', 'contact/properties', '/diagnostics'),
-        metadata={'description': 'topics recorded by every handler'})
+        'slip_control/tracking', 'slip_control/state', 'contact/properties', '/diagnostics',
+        'sim/state', 'sim/true_contact'),
+        metadata={'description': 'topics recorded by every handler (glob patterns; absent '
+                                 'topics, e.g. sim/* on hardware, are simply not recorded)'})
 
 
 @dataclass(frozen=True)
@@ -364,7 +377,7 @@ class ExperimentRunnerParams:
     hold_height: float = _f(0.20, 'm', 0.0, 1.0, 'lift above the pick-up pose')
     reset_joints: ResetJointsParams = _group(ResetJointsParams)
     grasp: ForceWaitParams = _group(ForceWaitParams)
-    release: ForceWaitParams = field(default_factory=_release_defaults)
+    release: ReleaseParams = _group(ReleaseParams)
     estimation: EstimationParams = _group(EstimationParams)
     hinge: RunnerHingeParams = _group(RunnerHingeParams)
     motion_time: MotionTimeParams = _group(MotionTimeParams)
@@ -395,4 +408,3 @@ class ExperimentRunnerParams:
 def all_param_classes() -> tuple[type, ...]:
     """The node parameter classes of this package (for config-YAML tests)."""
     return (ContactEstimatorParams, SlipControllerParams, ExperimentRunnerParams)
-

@@ -81,6 +81,9 @@ class Pending(Protocol):
     def result(self) -> CallResult:
         """Its outcome (only after `done`)."""
 
+    # Optional (looked up with getattr): ``describe() -> str`` says what the call waits for
+    # (used in timeout messages); ``cancel() -> None`` is called when the call is abandoned.
+
 
 CallReturn = CallResult | Pending
 
@@ -535,6 +538,12 @@ class SequenceRunner:
         """No more steps will run."""
         return self._finished
 
+    @property
+    def fast_poll(self) -> bool:
+        """The current step commands on every poll (force profile): poll at 500 Hz."""
+        return self._current is not None and \
+            self._current.action == Action.PLAY_FORCE_PROFILE
+
     def poll(self, t: float) -> RunnerProgress:
         """Advance as far as possible at time ``t`` [s] without blocking."""
         if self._t0 is None:
@@ -566,6 +575,27 @@ class SequenceRunner:
                 self._until = None
             self._done(step, 'ok')
         return self.progress()
+
+    def abort(self, message: str, t: float) -> None:
+        """Stop the main steps now (cancel, cell fault); the cleanup steps still run.
+
+        The running step's call is cancelled if its `Pending` has a ``cancel()`` method.
+        Poll on to run the cleanup; `progress` then reports failure with ``message``.
+
+        Args:
+            message: Why (becomes the failure message).
+            t: Current time [s].
+        """
+        self._last_t = t
+        if self._finished or self._in_cleanup:
+            return
+        name = self._current.name if self._current is not None else 'between steps'
+        self._cancel_pending()
+        self._log.append(f'{name}: ABORTED: {message}')
+        self._current = None
+        self._until = None
+        self._failure = f'{self._seq.mode}: aborted during {name!r}: {message}'
+        self._queue = []
 
     def progress(self) -> RunnerProgress:
         """Current progress without advancing."""
@@ -681,8 +711,20 @@ class SequenceRunner:
     def _timed_out(self, step: Step, t: float) -> bool:
         if t - self._step_t0 <= step.timeout:
             return False
-        self._fail(step, f'timed out after {step.timeout:.1f} s')
+        detail = ''
+        describe = getattr(self._pending, 'describe', None)
+        if callable(describe):
+            detail = f' ({describe()})'
+        self._cancel_pending()
+        self._fail(step, f'timed out after {step.timeout:.1f} s{detail}')
         return True
+
+    def _cancel_pending(self) -> None:
+        """Give an abandoned call the chance to clean up (e.g. drop an rclpy future)."""
+        cancel = getattr(self._pending, 'cancel', None)
+        if callable(cancel):
+            cancel()
+        self._pending = None
 
     def _fail(self, step: Step, message: str) -> None:
         self._log.append(f'{step.name}: FAILED: {message}')
