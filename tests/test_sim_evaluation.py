@@ -176,11 +176,6 @@ def test_ft_stream_stop_mid_slip_goes_to_safe_hold_within_100_ms(ft_faults: dict
         assert o.mode_after == SlipMode.HOLD
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    'HoldController holds the LINEAR controller\'s last output when the F/T goes stale; that '
-    'output is a slip force (down to the 0.6 N floor), so the object keeps sliding and falls '
-    'for some cut instants. Fix proposed in the issue-7 item-4 note (raise to the HOLD law on '
-    'the last wrench, never lower).'))
 def test_ft_stream_stop_mid_slip_keeps_the_object(ft_faults: dict) -> None:
     for at, o in ft_faults.items():
         assert not o.dropped, at

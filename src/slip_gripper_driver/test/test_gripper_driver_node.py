@@ -521,7 +521,7 @@ def test_topic_mode_consumes_standalone_netft_drivers_and_biases_through_them(
                                    'port': cell.ft_port, 'read_config': False,
                                    'counts_per_force': 1.0e6, 'counts_per_torque': 1.0e6,
                                    'expected_rate': BOX_RATE_HZ, 'publish_decimation': 1,
-                                   'bias.duration': 0.2}))
+                                   'bias.duration': 0.5}))  # loaded CI: >= 50 samples
                for k, address in ((1, '127.0.0.6'), (2, '127.0.0.5'))]
     gripper = GripperDriverNode(context=ros_context, parameter_overrides=params(
         cell.overrides(**{'ft.mode': 'topic'})))

@@ -65,3 +65,17 @@ def test_custom_validate_runs_and_replace_keeps_other_values() -> None:
     cfg = from_flat(Cfg, {'port': 'loop://'})
     changed = replace_flat(cfg, {'gains.kp': 5.0})
     assert changed.gains.kp == 5.0 and changed.port == 'loop://' and cfg.gains.kp == 2.0
+
+
+@dataclass(frozen=True)
+class TwoGroups:
+    squeeze: Gains = field(default_factory=Gains)
+    release: Gains = field(default_factory=lambda: Gains(kp=-8.0, mode='finger_1'))
+
+
+def test_nested_groups_keep_their_factory_defaults() -> None:
+    defaults = {s.name: s.default for s in specs(TwoGroups)}
+    assert defaults['squeeze.kp'] == 2.0 and defaults['release.kp'] == -8.0
+    built = from_flat(TwoGroups, {'squeeze.kp': 3.0})
+    assert built.release == Gains(kp=-8.0, mode='finger_1')
+    assert built.squeeze.kp == 3.0

@@ -334,10 +334,18 @@ class HoldController(SlipController):
     def step(self, inputs: SensorSnapshot, t: float) -> ControlOutput:
         """HOLD law with rise-at-once / first-order-fall shaping and the stale rules."""
         st = self._assess(inputs, t)
-        if not st.ft_fresh:
-            return self._emit(self._out, st, 'F/T stale: holding the last output',
-                              safe_hold=True)
         frames = self._p.frames
+        if not st.ft_fresh:
+            # Never lower the force, and raise it to the HOLD law on the last wrench received:
+            # a HOLD that takes over from a slip mode would otherwise keep its low slip force
+            # (0.6 N floor) and drop the object (found by the in-process evaluation).
+            w1, w2 = inputs.wrench_1, inputs.wrench_2
+            if w1 is not None and w2 is not None and all(
+                    math.isfinite(x) for x in (w1.fx, w1.fy, w1.tz, w2.fx, w2.fy, w2.tz)):
+                f = self.hold_force(combine_wrenches(frames, w1, w2), None)
+                self._out = f if self._out is None else max(self._out, f)
+            return self._emit(self._out, st, 'F/T stale: holding, never decreasing',
+                              safe_hold=True)
         if not st.velocity_fresh:
             assert inputs.wrench_1 is not None and inputs.wrench_2 is not None
             w = combine_wrenches(frames, inputs.wrench_1, inputs.wrench_2)

@@ -1,9 +1,11 @@
 """Entry points for our nodes: clean start, autostart of lifecycle nodes, clean stop.
 
 rclpy's own signal handler shuts the context down on SIGINT, after which a node can no longer
-publish its last state. We install handlers that raise in the main thread instead, so the
-``finally`` block still runs with a valid context: lifecycle nodes get their shutdown
-transition (drivers command the safe state there), then the executor is shut down and joined.
+publish its last state. Our SIGINT/SIGTERM handlers only set a flag that the spin loop checks
+every 0.1 s (an exception raised from a handler can land inside an rclpy message conversion and
+surface as an unrelated RuntimeError). The ``finally`` block then runs with a valid context:
+lifecycle nodes get their shutdown transition (drivers command the safe state there), and the
+executor is shut down.
 """
 from __future__ import annotations
 
@@ -20,12 +22,14 @@ from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 
 
-class _Stop(Exception):
-    """Raised by our SIGTERM handler to leave spin()."""
+class _StopFlag:
+    """Set by the SIGINT/SIGTERM handlers; checked by the spin loop."""
 
+    def __init__(self) -> None:
+        self.signal_name = ''
 
-def _raise_stop(signum: int, frame: object) -> None:  # noqa: ARG001
-    raise _Stop(signal.Signals(signum).name)
+    def __call__(self, signum: int, frame: object) -> None:  # noqa: ARG002
+        self.signal_name = signal.Signals(signum).name
 
 
 def autostart(node: LifecycleNode) -> bool:
@@ -69,7 +73,9 @@ def run_nodes(factories: Sequence[Callable[[], Node]], args: list[str] | None = 
     """
     rclpy.init(args=args if args is not None else sys.argv,
                signal_handler_options=SignalHandlerOptions.NO)
-    signal.signal(signal.SIGTERM, _raise_stop)
+    stop = _StopFlag()
+    signal.signal(signal.SIGINT, stop)
+    signal.signal(signal.SIGTERM, stop)
     executor = MultiThreadedExecutor() if multithreaded else SingleThreadedExecutor()
     nodes: list[Node] = []
     code = 0
@@ -83,9 +89,9 @@ def run_nodes(factories: Sequence[Callable[[], Node]], args: list[str] | None = 
                 code = 1
         # spin_once with a timeout instead of spin(): a graph without timers would otherwise
         # block inside rcl_wait forever and Python could never run our signal handlers.
-        while executor.context.ok():
+        while executor.context.ok() and not stop.signal_name:
             executor.spin_once(timeout_sec=0.1)
-    except (KeyboardInterrupt, _Stop, ExternalShutdownException):
+    except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except Exception as exc:  # noqa: BLE001 - report, stop devices safely, exit non-zero
         if nodes:

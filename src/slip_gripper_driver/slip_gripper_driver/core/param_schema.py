@@ -54,13 +54,17 @@ def _field_default(f: dataclasses.Field) -> Any:
     raise TypeError(f'parameter field {f.name!r} has no default')
 
 
-def iter_specs(cls: type, prefix: str = '') -> Iterator[ParamSpec]:
-    """Yield the flattened parameter specs of a (nested) frozen dataclass type."""
+def iter_specs(cls: type, prefix: str = '', defaults: Any = None) -> Iterator[ParamSpec]:
+    """Yield the flattened parameter specs of a (nested) frozen dataclass type.
+
+    A nested group's defaults are those of the instance its field's default (or
+    ``default_factory``) produces, so two groups of one class can default differently.
+    """
     for f in dataclasses.fields(cls):
-        default = _field_default(f)
+        default = getattr(defaults, f.name) if defaults is not None else _field_default(f)
         name = prefix + f.name
         if dataclasses.is_dataclass(default):
-            yield from iter_specs(type(default), name + '.')
+            yield from iter_specs(type(default), name + '.', default)
             continue
         meta = f.metadata
         is_tuple = isinstance(default, tuple)
@@ -135,16 +139,16 @@ def check_value(spec: ParamSpec, value: Any) -> list[str]:
     return problems
 
 
-def _build(cls: type, flat: Mapping[str, Any], prefix: str) -> Any:
+def _build(cls: type, flat: Mapping[str, Any], prefix: str, defaults: Any = None) -> Any:
     kwargs: dict[str, Any] = {}
     for f in dataclasses.fields(cls):
-        default = _field_default(f)
+        default = getattr(defaults, f.name) if defaults is not None else _field_default(f)
         name = prefix + f.name
         if dataclasses.is_dataclass(default):
-            kwargs[f.name] = _build(type(default), flat, name + '.')
+            kwargs[f.name] = _build(type(default), flat, name + '.', default)
         elif name in flat:
             kwargs[f.name] = flat[name]
-    return cls(**kwargs)
+    return dataclasses.replace(defaults, **kwargs) if defaults is not None else cls(**kwargs)
 
 
 def from_flat(cls: type[T], flat: Mapping[str, Any], *, strict: bool = True) -> T:
