@@ -65,7 +65,7 @@ def describe_link_error(port: str, exc: BaseException) -> str:
 
 
 def open_stream(url: str, baudrate: int, timeout_s: float, *,
-                write_timeout_s: float = 0.5, exclusive: bool = True) -> ByteStream:
+                write_timeout_s: float = 0.05, exclusive: bool = True) -> ByteStream:
     """Open a serial port or pyserial URL.
 
     Args:
@@ -75,7 +75,8 @@ def open_stream(url: str, baudrate: int, timeout_s: float, *,
         timeout_s: Read timeout [s]; bounds how long a read blocks.
         write_timeout_s: Write timeout [s]; a wedged port raises instead of blocking. pyserial
             checks it after ``os.write`` returns, so a thread that waited for the GIL can see a
-            "timeout" for bytes already sent: keep it well above scheduling delays (0.5 s).
+            "timeout" for bytes already sent; a long timeout, on the other hand, lets a blocked write
+            outlast the link supervision. Nodes pass a value suited to their link parameters.
         exclusive: Take an exclusive lock on POSIX ports (one owner per device, HW-13).
 
     Returns:
@@ -318,7 +319,7 @@ class SerialLink:
     def __init__(self, url: str, *, clock: Clock, on_line: LineCallback,
                  on_connected: EventCallback | None = None, on_lost: EventCallback | None = None,
                  on_error: EventCallback | None = None, baudrate: int = 115200,
-                 read_timeout_s: float = 0.02, write_timeout_s: float = 0.5,
+                 read_timeout_s: float = 0.02, write_timeout_s: float = 0.05,
                  max_line_length: int = 128, reconnect: ReconnectParams = ReconnectParams(),
                  opener: Callable[..., ByteStream] = open_stream,
                  wait_clock: Clock = time.monotonic) -> None:
