@@ -57,27 +57,36 @@ class Experiment:
     overrides: dict[str, dict[str, Any]] = field(default_factory=dict)
 
 
+#: Brings the cell to the pick-up pose with the gripper open and biased (not recorded).
+PREAMBLE = ('reset_joints', 'release', 'go_to_object')
+
 EXPERIMENTS: tuple[Experiment, ...] = (
     Experiment('force_tracking', 'force-tracking profile: steps 5-25 N and sines 1-64 Hz '
-               '(control_and_estimation §5.4), object held in the air', 'cardboard',
-               ('est_contact', 'grasp'), 'force_tracking_test'),
+               '(control_and_estimation §5.4), object held in the air; the topics of §5.4 only',
+               'cardboard', ('est_contact', 'grasp'), 'force_tracking_test',
+               overrides={'experiment_runner': {'recording.topics': [
+                   'gripper/grasp_force_cmd', 'gripper/motor_command', 'finger_1/ft/wrench',
+                   '/diagnostics']}}),
     Experiment('est_contact_cardboard', 'contact estimation (push 1 cm down, twist ±10° on '
                'the table), cardboard box', 'cardboard', (), 'est_contact'),
     Experiment('est_contact_plastic', 'contact estimation, plastic object', 'plastic', (),
                'est_contact'),
     Experiment('hold_disturbance', 'slip avoidance (HOLD) for 6 s with pushes and a twist',
-               'cardboard', ('est_contact', 'pick_up_object'), 'hold_mode', duration=6.0,
+               'cardboard', ('est_contact', 'grasp', 'pick_up_object'), 'hold_mode', duration=6.0,
                disturbances=(Disturbance(1.0, 0.0, -2.0, 0.0, 0.3),
                              Disturbance(2.5, 1.5, 0.0, 0.0, 0.3),
                              Disturbance(4.0, 0.0, 0.0, 0.02, 0.3))),
     Experiment('linear_slip', 'linear slip 0.02 m in 2 s', 'cardboard',
-               ('est_contact', 'pick_up_object'), 'linear_slippage', duration=2.0,
+               ('est_contact', 'grasp', 'pick_up_object'), 'linear_slippage', duration=2.0,
                distance=0.02),
-    Experiment('rotational_slip', 'rotational slip 0.349 rad (20°) in 2 s', 'cardboard',
-               ('est_contact', 'pick_up_object'), 'rotational_slippage', duration=2.0,
-               angle=0.3490659),
+    Experiment('rotational_slip', 'rotational slip 0.349 rad (20°) in 2 s, starting with the '
+               'object held 90° from vertical so that gravity turns it (the presets hang only '
+               '1 cm below the grasp point; from 60° the torque falls short)',
+               'cardboard', ('est_contact', 'grasp', 'pick_up_object', 'go_to_hinge_pose'),
+               'rotational_slippage', duration=2.0, angle=0.3490659,
+               overrides={'experiment_runner': {'hinge.start_angle': 1.5707963}}),
     Experiment('hinge', 'hinge: the gripper turns 60° about the grasp axis around the hanging '
-               'object', 'cardboard', ('est_contact', 'pick_up_object', 'go_to_hinge_pose'),
+               'object', 'cardboard', ('est_contact', 'grasp', 'pick_up_object', 'go_to_hinge_pose'),
                'hinge_mode'),
 )
 
@@ -129,6 +138,7 @@ class _Client:
             raise RuntimeError(f'disturbance failed: {res.message if res else "no answer"}')
 
     def close(self) -> None:
+        self.action.destroy()
         self.executor.shutdown()
         self.node.destroy_node()
 
@@ -145,7 +155,7 @@ def record(exp: Experiment, output: Path, work: Path, realtime_factor: float) ->
     client = _Client()
     try:
         runner.start()
-        for mode in exp.setup:
+        for mode in PREAMBLE + exp.setup:
             _say(f'{exp.name}: {mode}')
             client.run(mode)
         _say(f'{exp.name}: {exp.mode} (recording)')
@@ -184,7 +194,7 @@ def write_readme(output: Path) -> None:
                                                   ('angle', exp.angle)) if v)
         lines += [f'## {exp.name}', '', f'{exp.description}.', '',
                   f'* object preset: `{exp.preset}`; set-up (not recorded): '
-                  f'{", ".join(exp.setup) or "none"}; recorded runner mode: `{exp.mode}`'
+                  f'{", ".join(PREAMBLE + exp.setup)}; recorded runner mode: `{exp.mode}`'
                   + (f' ({args})' if args else ''),
                   f'* duration {info.duration_s:.1f} s (sim time), {info.message_count} '
                   f'messages, {size:.2f} MB', '', '| topic | type | messages |', '|---|---|---|']
