@@ -20,7 +20,7 @@ from slip_control.core.mode_switch import ModeRequest, build_controller
 from slip_control.core.params import ContactEstimatorParams, SlipControllerParams
 from slip_control.core.signals import SensorSnapshot
 from slip_control.ros_conv import twist_from_msg, wrench_from_msg
-from slip_gripper_driver.common.bag_io import read_messages, stamp_s
+from slip_gripper_driver.common.bag_io import bag_info, read_messages, stamp_s
 
 SENSORS = ('/finger_1/ft/wrench', '/finger_2/ft/wrench', '/finger_1/slip/twist',
            '/finger_2/slip/twist')
@@ -30,11 +30,20 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     root = Path(__file__).resolve().parents[1]
-    parser.add_argument('--bag', default=str(root / 'bags' / 'force_tracking'))
+    parser.add_argument('--bag', default='', help='default: the longest bag in bags/ that has '
+                        'both fingers\' wrench and twist topics')
     parser.add_argument('--quick', action='store_true', help='accepted for make bench')
     ns = parser.parse_args()
-    if not Path(ns.bag).is_dir():
-        print(f'bench_replay: {ns.bag} missing (run make bags)')
+    if not ns.bag:
+        candidates = []
+        for path in sorted((root / 'bags').iterdir()) if (root / 'bags').is_dir() else []:
+            if path.is_dir():
+                info = bag_info(path)
+                if set(SENSORS) <= {t.name for t in info.topics}:
+                    candidates.append((info.duration_s, str(path)))
+        ns.bag = max(candidates)[1] if candidates else ''
+    if not ns.bag or not Path(ns.bag).is_dir():
+        print('bench_replay: no bag with the sensor topics (run make bags)')
         return 0
     t0 = time.perf_counter()
     msgs = read_messages(ns.bag, [t for t in SENSORS])
@@ -46,10 +55,11 @@ def main() -> int:
                            r_std=1e-4, n_linear=50, n_static=5, n_rotational=50,
                            linear_valid=True, viscous_valid=False, static_valid=True,
                            rotational_valid=True)
-    props = ContactProperties(finger, finger, ContactSource.PRESET, 'bench')
+    props = ContactProperties(finger, finger, ContactSource.ESTIMATED, 'bench')
     estimator = ContactEstimator(ContactEstimatorParams())
     params = SlipControllerParams()
     outcome = build_controller(ModeRequest(mode=4), props, params, events[0][0])
+    assert outcome.ok, outcome.message
     controller = outcome.controller
     estimator.start(EstimationPhase.LINEAR, span / 2, events[0][0])
     # Conversion from messages to samples is part of the replay cost; decoding is not.
