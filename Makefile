@@ -12,7 +12,8 @@ PY         := $(VENV)/bin/python
 # Files that change what colcon installs (Python sources are symlinked, so edits need no build).
 BUILD_INPUTS := $(shell find src -type f \( -name package.xml -o -name setup.py -o -name setup.cfg \
 	-o -name CMakeLists.txt -o -name '*.msg' -o -name '*.srv' -o -name '*.action' \
-	-o -path '*/resource/*' -o -path '*/config/*' -o -path '*/launch/*' \) 2>/dev/null)
+	-o -path '*/resource/*' -o -path '*/config/*' -o -path '*/launch/*' \) \
+	-not -path '*/__pycache__/*' 2>/dev/null)
 PYTEST_ARGS ?=
 DEMO_ARGS ?=
 
