@@ -3,7 +3,6 @@ from __future__ import annotations
 
 import math
 
-from builtin_interfaces.msg import Time
 from geometry_msgs.msg import PoseStamped, TransformStamped, TwistStamped, WrenchStamped
 from sensor_msgs.msg import JointState
 from slip_msgs.msg import (ContactProperties, FingerContact, GripperStatus, MotorCommand,
@@ -14,14 +13,8 @@ from friction_models.core.sensors import FtSample, TelemetrySample
 from friction_models.core.sim_cell import SimState as CoreSimState
 from friction_models.core.sim_cell import SimStatus
 from slip_gripper_driver.core.frames import Transform
+from slip_gripper_driver.ros_conv import to_time  # noqa: F401 (used here and by the node)
 from slip_velocity_sensor.core.session import Sample
-
-
-def to_time(t: float) -> Time:
-    """Seconds → builtin_interfaces/Time (t ≥ 0)."""
-    sec = math.floor(t)
-    nanosec = min(int(round((t - sec) * 1e9)), 999_999_999)
-    return Time(sec=int(sec), nanosec=nanosec)
 
 
 def wrench_msg(sample: FtSample, values: tuple[float, ...], frame_id: str) -> WrenchStamped:

@@ -21,19 +21,10 @@ from slip_control.core.contact import ContactProperties, ContactSource, FingerCo
 from slip_control.core.controllers import SlipResult, TrackingRecord
 from slip_control.core.mode_switch import ModeRequest
 from slip_control.core.signals import TwistSample, WrenchSample
+from slip_gripper_driver.ros_conv import from_time as stamp_to_s  # noqa: F401 (re-export)
+from slip_gripper_driver.ros_conv import to_time as s_to_stamp  # noqa: F401 (re-export)
 
 _NS = 1_000_000_000
-
-
-def stamp_to_s(stamp: Time) -> float:
-    """``builtin_interfaces/Time`` → seconds."""
-    return stamp.sec + stamp.nanosec * 1e-9
-
-
-def s_to_stamp(t: float) -> Time:
-    """Seconds → ``builtin_interfaces/Time`` (rounded to the nanosecond; t ≥ 0)."""
-    ns = int(round(t * _NS))
-    return Time(sec=ns // _NS, nanosec=ns % _NS)
 
 
 def ns_to_stamp(ns: int) -> Time:

@@ -8,20 +8,14 @@ from __future__ import annotations
 
 import math
 
-from builtin_interfaces.msg import Time
 from geometry_msgs.msg import TwistStamped
 from slip_msgs.msg import OpticalChipArray, PlanarSlip
 
 from slip_velocity_sensor.core.protocol import N_CHIPS
 from slip_velocity_sensor.core.session import Sample
+from slip_gripper_driver.ros_conv import to_time
 
 NAN = math.nan
-
-
-def to_time(t: float) -> Time:
-    """Seconds (node clock) → ``builtin_interfaces/Time`` (t >= 0)."""
-    ns = max(0, round(t * 1e9))
-    return Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
 
 
 def twist_msg(sample: Sample, frame_id: str) -> TwistStamped:
