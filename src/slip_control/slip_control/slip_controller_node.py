@@ -3,8 +3,11 @@
 
 Thin rclpy node around `slip_control.core.controllers` and `slip_control.core.mode_switch`:
 
-* subscribes ``finger_k/ft/wrench`` and ``finger_k/slip/twist`` (SENSOR_SUB; each callback
-  replaces one immutable `SensorSnapshot`) and ``contact/properties`` (LATCHED);
+* subscribes ``finger_k/ft/wrench`` (SENSOR_SUB) and ``finger_k/slip/twist`` (`TWIST_SUB`);
+  each callback replaces one immutable `SensorSnapshot` (whose per-finger travel integrates
+  every twist sample, so trajectory progress is exact even when steps see only some), and
+  ``contact/properties`` (LATCHED);
+* ROTATIONAL/LINEAR end with "contact lost" when the pads measure no normal force (dropped);
 * one control step per finger-1 twist, plus a watchdog step every `WATCHDOG_PERIOD_S` on the
   node clock, so stale inputs are noticed when a stream stops (safe hold within
   ``velocity_stale_after`` + one watchdog period). Staleness and ``dt`` come from message
@@ -18,7 +21,7 @@ Thin rclpy node around `slip_control.core.controllers` and `slip_control.core.mo
   are ``success = false`` with the reason, and change nothing;
 * serves the ``slip_control/execute`` action (``slip_msgs/ExecuteSlip``, LINEAR or ROTATIONAL):
   feedback = each tracking row; the goal ends with the trajectory ("done", "timeout",
-  "slip reversed", "velocity stale", "F/T stale"), when an accepted ``set_mode`` request or a
+  "slip reversed", "contact lost", "velocity stale", "F/T stale"), when an accepted ``set_mode`` request or a
   new goal preempts it ("preempted"), or on cancel ("canceled"; HOLD takes over). In every
   case the controller falls back to HOLD (or to the requested mode);
 * diagnostics tasks ``mode``, ``inputs``, ``contact``.
@@ -38,6 +41,7 @@ from rclpy.action import ActionServer, CancelResponse
 from rclpy.action.server import ServerGoalHandle
 from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
 from rclpy.node import Node
+from rclpy.qos import HistoryPolicy, QoSProfile
 from rclpy.task import Future
 from slip_msgs.action import ExecuteSlip
 from slip_msgs.msg import ContactProperties as ContactPropertiesMsg
@@ -71,6 +75,12 @@ WATCHDOG_PERIOD_S = 0.01
 # the mismatch. The contact/properties subscription keeps its handlers.
 QUIET_SUB = SubscriptionEventCallbacks(use_default_callbacks=False)
 QUIET_PUB = PublisherEventCallbacks(use_default_callbacks=False)
+
+#: Twist subscriptions keep 0.25 s of samples (30 at 120 Hz) instead of SENSOR_SUB's 5: the
+#: trajectory progress integrates every sample, so a burst (a sim catching up, a busy host)
+#: must not overflow the queue. Best effort, volatile, like SENSOR_SUB.
+TWIST_SUB = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=30,
+                       reliability=SENSOR_SUB.reliability, durability=SENSOR_SUB.durability)
 
 _TRAJECTORY_MODES = (SlipMode.LINEAR, SlipMode.ROTATIONAL)
 
@@ -134,10 +144,10 @@ class SlipControllerNode(Node):
                                  lambda m: self._on_wrench(2, m), SENSOR_SUB,
                                  event_callbacks=QUIET_SUB)
         self.create_subscription(TwistStamped, 'finger_2/slip/twist', self._on_twist_2,
-                                 SENSOR_SUB, event_callbacks=QUIET_SUB)
+                                 TWIST_SUB, event_callbacks=QUIET_SUB)
         # Created last: when several samples are ready at once, the trigger is handled last.
         self.create_subscription(TwistStamped, 'finger_1/slip/twist', self._on_twist_1,
-                                 SENSOR_SUB, event_callbacks=QUIET_SUB)
+                                 TWIST_SUB, event_callbacks=QUIET_SUB)
         self.create_service(SetSlipMode, 'slip_control/set_mode', self._on_set_mode)
         self._action = ActionServer(self, ExecuteSlip, 'slip_control/execute',
                                     execute_callback=self._execute,

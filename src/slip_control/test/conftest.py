@@ -17,16 +17,33 @@ FRAMES = FrameParams()
 def middle_snapshot(stamp: float, *, f: tuple[float, float] = (0.0, 0.0), tz: float = 0.0,
                     v: tuple[float, float] = (0.0, 0.0), omega: float = 0.0,
                     normal: float = 5.0, ft_stamp: float | None = None,
-                    v2_stamp: float | None = None) -> SensorSnapshot:
-    """Both fingers seeing the same ``gripper_middle`` force, torque, velocity and rate."""
-    ws, ts = [], []
+                    v2_stamp: float | None = None,
+                    previous: SensorSnapshot | None = None) -> SensorSnapshot:
+    """Both fingers seeing the same ``gripper_middle`` force, torque, velocity and rate.
+
+    Built on ``previous`` (as a node's callbacks build on their last snapshot), so the fingers'
+    integrated travel carries over from call to call.
+    """
+    snap = previous if previous is not None else SensorSnapshot()
     for k in (1, 2):
         fx, fy, t = planar_from_middle(FRAMES, k, f[0], f[1], tz)
-        ws.append(WrenchSample(fx, fy, -normal, t, stamp if ft_stamp is None else ft_stamp))
+        snap = snap.with_wrench(k, WrenchSample(fx, fy, -normal, t,
+                                                stamp if ft_stamp is None else ft_stamp))
         vx, vy, w = planar_from_middle(FRAMES, k, v[0], v[1], omega)
         s = stamp if (k == 1 or v2_stamp is None) else v2_stamp
-        ts.append(TwistSample(vx, vy, w, s))
-    return SensorSnapshot(ws[0], ws[1], ts[0], ts[1])
+        snap = snap.with_twist(k, TwistSample(vx, vy, w, s))
+    return snap
+
+
+class SnapshotStream:
+    """`middle_snapshot` with memory: each call builds on the previous snapshot."""
+
+    def __init__(self) -> None:
+        self.last: SensorSnapshot | None = None
+
+    def __call__(self, stamp: float, **kw: object) -> SensorSnapshot:
+        self.last = middle_snapshot(stamp, previous=self.last, **kw)  # type: ignore[arg-type]
+        return self.last
 
 
 def finger(mu_c: float = 0.4, r: float = 0.005, *, linear_valid: bool = True,
@@ -53,7 +70,8 @@ def params() -> SlipControllerParams:
 
 @pytest.fixture
 def snap() -> Callable[..., SensorSnapshot]:
-    return middle_snapshot
+    """A fresh snapshot stream per test (travel integrates across the test's calls)."""
+    return SnapshotStream()
 
 
 @pytest.fixture

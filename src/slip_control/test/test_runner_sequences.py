@@ -197,6 +197,10 @@ def test_slip_sequences_and_hinge() -> None:
     req = next(s.args['request'] for s in seq.steps if s.action == Action.SET_SLIP_MODE)
     assert req.mode == SlipMode.LINEAR and req.distance == 0.02 and req.latch_direction
     assert prog.elapsed >= 3.0
+    # Rotation, like the slide, goes the way gravity turns the object: sign latched.
+    seq = build_sequence('rotational_slippage', P, duration=2.0, angle=0.35)
+    req = next(s.args['request'] for s in seq.steps if s.action == Action.SET_SLIP_MODE)
+    assert req.mode == SlipMode.ROTATIONAL and req.angle == 0.35 and req.latch_direction
     cell = FakeCell()
     seq = build_sequence('hinge_mode', P, recording_name='wood_hinge_mode_1')
     prog = _run(SequenceRunner(seq, cell, P, flags=CellFlags(holding=True, at_hinge=True)), cell)

@@ -280,13 +280,52 @@ def test_rotational_translation_floor(snap: Snap) -> None:
     assert out.tracking is not None and out.tracking.integral > 0.2
     assert out.force == pytest.approx(2.0)
     # kp_cop adds kp_cop·(‖c‖ − r) with ‖c‖ = ‖v̄‖/(|ω̄| + 1e-3) = 0.01/0.1 = 0.1 m.
-    params = SlipControllerParams(rotational=replace(SlipControllerParams().rotational,
-                                                     kp_cop=20.0))
-    ctrl = RotationalController(params, c, 0.5, 2.0, 0.0)
+    rot = replace(SlipControllerParams().rotational, kp_cop=20.0, translation_gain=0.0)
+    ctrl = RotationalController(SlipControllerParams(rotational=rot), c, 0.5, 2.0, 0.0)
     for i in range(1, 150):
         out = ctrl.step(snap(i * DT, f=(0.6, 0.8), tz=0.0005, v=(0.01, 0.0), omega=0.099),
                         i * DT)
     assert out.force == pytest.approx(2.0 + 20.0 * (0.1 - 0.005))
+
+
+def test_rotational_cop_term_is_gated_and_capped(snap: Snap) -> None:
+    """Near ω = 0 the spec's ‖c‖ explodes (0.01/0.001 = 10 m): gated, and capped."""
+    c = ControlContact(mu_c=0.5, r=0.005, r_valid=True)
+    rot = replace(SlipControllerParams().rotational, kp_cop=20.0, translation_gain=0.0,
+                  cop_min_rate=0.026, cop_max_force=1.5)
+    ctrl = RotationalController(SlipControllerParams(rotational=rot), c, 0.5, 2.0, 0.0)
+    for i in range(1, 150):
+        out = ctrl.step(snap(i * DT, f=(0.6, 0.8), tz=0.0005, v=(0.01, 0.0), omega=0.0),
+                        i * DT)
+    assert out.force == pytest.approx(2.0)          # gated: ω below cop_min_rate
+    ctrl = RotationalController(SlipControllerParams(rotational=rot), c, 0.5, 2.0, 0.0)
+    for i in range(1, 150):
+        out = ctrl.step(snap(i * DT, f=(0.6, 0.8), tz=0.0005, v=(0.01, 0.0), omega=0.03),
+                        i * DT)
+    assert out.force == pytest.approx(2.0 + 1.5)    # 20·(0.01/0.031 − 0.005) = 6.3 N → cap
+
+
+@pytest.mark.parametrize('v, omega, expected_extra', [
+    ((0.01, 0.0), 0.099, 300.0 * (0.01 - 0.005 * 0.099)),   # translation beyond c = r
+    ((0.0003, 0.0004), 0.2, 0.0),                           # 0.5 mm/s < r·ω = 1 mm/s
+    ((0.01, 0.0), 0.0, 300.0 * 0.01),                       # pure translation: no spike
+])
+def test_rotational_translation_speed_term(snap: Snap, v: tuple[float, float], omega: float,
+                                           expected_extra: float) -> None:
+    c = ControlContact(mu_c=0.5, r=0.005, r_valid=True)
+    ctrl = RotationalController(SlipControllerParams(), c, 0.5, 2.0, 0.0)
+    for i in range(1, 150):
+        out = ctrl.step(snap(i * DT, f=(0.6, 0.8), tz=0.0005, v=v, omega=omega), i * DT)
+    assert out.force == pytest.approx(2.0 + expected_extra)
+
+
+def test_rotational_translation_margin_scales_the_floor(snap: Snap) -> None:
+    c = ControlContact(mu_c=0.5, r=0.005, r_valid=True)
+    rot = replace(SlipControllerParams().rotational, translation_margin=1.4)
+    ctrl = RotationalController(SlipControllerParams(rotational=rot), c, 0.5, 2.0, 0.0)
+    for i in range(1, 150):
+        out = ctrl.step(snap(i * DT, f=(0.6, 0.8), tz=0.0005), i * DT)
+    assert out.force == pytest.approx(1.4 * 2.0)
 
 
 def test_clock_jump_reset_rebases_the_trajectory(params: SlipControllerParams,
@@ -303,6 +342,62 @@ def test_clock_jump_reset_rebases_the_trajectory(params: SlipControllerParams,
     assert out.force is not None and out.tracking is not None
     assert out.tracking.ref_pos == pytest.approx(
         ctrl.trajectory.sample(60 * DT + DT)[0], abs=1e-9)
-    assert ctrl.progress == pytest.approx(x)                # first sample after reset: no dt
-    ctrl.step(snap(5.0 + 2 * DT, f=(1.0, 0.0), v=(0.01, 0.0)), 5.0 + 2 * DT)
+    # The travel re-based at the jump and then integrated the one sample after it.
     assert ctrl.progress == pytest.approx(x + 0.01 * DT)
+    ctrl.step(snap(5.0 + 2 * DT, f=(1.0, 0.0), v=(0.01, 0.0)), 5.0 + 2 * DT)
+    assert ctrl.progress == pytest.approx(x + 2 * 0.01 * DT)
+
+
+@pytest.mark.parametrize('make', [
+    lambda p, c: RotationalController(p, c, 0.3, 1.0, 0.0),
+    lambda p, c: LinearController(p, c, 0.02, 1.0, 0.0, direction=(1.0, 0.0)),
+])
+def test_dropped_object_ends_the_trajectory_as_contact_lost(snap: Snap, make: Any) -> None:
+    """A lost object reads as zero slip speed; without the normal-force check the trajectory
+    would settle after T and report 'done'."""
+    ctrl = make(SlipControllerParams(), ControlContact(mu_c=0.5, r=0.005, r_valid=True))
+    for i in range(1, 13):                                   # turning/sliding, in contact
+        out = ctrl.step(snap(i * DT, f=(0.0, 1.0), tz=0.001, v=(0.005, 0.0), omega=0.1), i * DT)
+        assert out.result is None
+    res = None
+    for i in range(13, 13 + 240):                            # dropped: nothing measured
+        out = ctrl.step(snap(i * DT, normal=0.0), i * DT)
+        if out.result is not None:
+            res = out.result
+            break
+    assert res is not None and not res.success and res.message == 'contact lost'
+    # 0.1 s debounce at 120 Hz: ends on the 14th sample without contact, long before T.
+    assert (i - 12) * DT == pytest.approx(0.1 + DT, abs=1.5 * DT)
+    assert out.next_controller is not None and out.next_controller.mode == SlipMode.HOLD
+
+
+def test_travel_integrates_each_finger_over_its_own_stamps() -> None:
+    from slip_control.core.signals import MAX_TRAVEL_SPAN, Travel, TwistSample
+    tr = Travel().advanced(TwistSample(1.0, 0.0, 0.5, 10.0))       # first: stamp only
+    assert (tr.x, tr.theta, tr.stamp) == (0.0, 0.0, 10.0)
+    tr = tr.advanced(TwistSample(0.01, -0.02, 0.5, 10.01))
+    assert (tr.x, tr.y, tr.theta) == pytest.approx((1e-4, -2e-4, 5e-3))
+    assert tr.advanced(TwistSample(9.0, 9.0, 9.0, 10.01)) is tr    # repeated stamp
+    nan = tr.advanced(TwistSample(float('nan'), 0.0, 0.0, 10.02))   # unusable: re-base only
+    assert (nan.x, nan.stamp) == (tr.x, 10.02)
+    gap = tr.advanced(TwistSample(1.0, 1.0, 1.0, 10.01 + MAX_TRAVEL_SPAN + 0.01))
+    assert (gap.x, gap.y, gap.theta) == (tr.x, tr.y, tr.theta)      # a gap is not bridged
+    back = tr.advanced(TwistSample(1.0, 1.0, 1.0, 3.0))             # clock jumped back
+    assert (back.x, back.stamp) == (tr.x, 3.0)
+
+
+def test_progress_is_exact_when_steps_miss_samples(snap: Snap) -> None:
+    """The node may step on only every third sample (executor backlog, DDS burst): progress
+    comes from the travel, so it equals the sensors' integral; rate·dt would miss 2/3."""
+    c = ControlContact(mu_c=0.5, r=0.005, r_valid=True)
+    ctrl = RotationalController(SlipControllerParams(), c, 1.0, 2.0, 0.0)
+    truth = 0.0
+    for i in range(1, 121):
+        omega = 0.2 + 0.5 * math.sin(i / 7.0)                      # a jerky rotation
+        s = snap(i * DT, f=(0.0, 1.0), tz=0.001, omega=omega)
+        if i > 1:
+            truth += omega * DT
+        if i % 3 == 1:
+            ctrl.step(s, i * DT)
+    assert ctrl.progress == pytest.approx(truth - sum(                # up to the last step
+        (0.2 + 0.5 * math.sin(i / 7.0)) * DT for i in (119, 120)), rel=1e-9)

@@ -59,7 +59,8 @@ from typing import ClassVar
 from slip_control.core.contact import ContactProperties, ContactSource
 from slip_control.core.params import SlipControllerParams
 from slip_control.core.signals import (InputStatus, MiddleTwist, MiddleWrench, SensorSnapshot,
-                                       assess_inputs, combine_twists, combine_wrenches)
+                                       Travel, assess_inputs, combine_twists, combine_wrenches,
+                                       middle_travel_delta)
 from slip_control.core.trajectory import TrapezoidalTrajectory
 
 #: Smallest torsional radius used in any division [m] (CE-6).
@@ -435,10 +436,12 @@ class _TrajectoryController(SlipController):
                                            params.trajectory.accel_fraction)
         self._t_start = t_start
         self._x = 0.0              # integrated progress [m | rad]
+        self._travel_ref: tuple[Travel, Travel] | None = None   # finger travel at the last step
         self._integral = 0.0       # E [m | rad]
         self._f_slip: float | None = None
         self._v_prev: float | None = None
         self._reverse_since: float | None = None
+        self._lost_since: float | None = None
         self._elapsed = 0.0
         self._done = False
         self._successor: HoldController | None = None
@@ -448,6 +451,10 @@ class _TrajectoryController(SlipController):
     @abstractmethod
     def _progress_rate(self, v: MiddleTwist) -> float:
         """Signed (or magnitude) progress rate of this step [m/s | rad/s]; may latch."""
+
+    @abstractmethod
+    def _progress_increment(self, d: MiddleTwist) -> float:
+        """Progress [m | rad] of a middle-frame displacement ``d`` (fields are m, m, rad)."""
 
     @abstractmethod
     def _slip_ratio(self, w: MiddleWrench) -> float:
@@ -501,6 +508,7 @@ class _TrajectoryController(SlipController):
         self._t_start = t - self._elapsed
         self._v_prev = None
         self._reverse_since = None
+        self._lost_since = None
 
     def abort(self, message: str, t: float) -> SlipResult | None:
         """End the trajectory without a successor (the caller installs the next mode)."""
@@ -540,9 +548,13 @@ class _TrajectoryController(SlipController):
         kp, ki, kd, k_rate, a, floor, gate = self._gains()
 
         rate = self._progress_rate(v)
-        if dt_ok:
-            assert dt is not None
-            self._x += rate * dt
+        # Progress from the fingers' integrated travel, not rate·dt: exact even when this step
+        # did not see every sample (skipped unsynchronised steps, executor backlog).
+        travel = (inputs.travel_1, inputs.travel_2)
+        if self._travel_ref is not None:
+            self._x += self._progress_increment(
+                middle_travel_delta(frames, self._travel_ref, travel))
+        self._travel_ref = travel
         x_d, v_d = self._traj.sample(tau)
         v_cmd = v_d + kp * (x_d - self._x)
         acc = 0.0
@@ -564,24 +576,7 @@ class _TrajectoryController(SlipController):
         self._v_prev = rate
         self._out = f_d
 
-        # Stop conditions (§4.9, CE-5): thresholds only, never float equality.
-        message = ''
-        success = False
-        if self._p.direction_aware and self._reversed(rate):
-            if self._reverse_since is None:
-                self._reverse_since = stamp
-            elif stamp - self._reverse_since > self._p.reversal.time:
-                message = 'slip reversed'
-        else:
-            self._reverse_since = None
-        if not message:
-            T = self._traj.duration
-            reached = self._x >= self._target
-            settled = tau >= T and abs(rate) < self._stop_threshold()
-            if reached or settled:
-                message, success = 'done', True
-            elif tau >= T + self._p.settle_timeout:
-                message = 'timeout'
+        message, success = self._stop_condition(stamp, tau, rate, w)
         track = TrackingRecord(stamp=stamp, mode=self.mode, ref_pos=x_d, ref_vel=v_d,
                                meas_pos=self._x, meas_vel=rate, force_cmd=f_d, f_slip=f_slip,
                                integral=self._integral, done=bool(message))
@@ -591,6 +586,41 @@ class _TrajectoryController(SlipController):
                              status=st, tracking=track)
 
     # internals -----------------------------------------------------------------------------
+
+    @staticmethod
+    def _held_for(since: float | None, active: bool, stamp: float, hold_time: float
+                  ) -> tuple[float | None, bool]:
+        """Debounce: ``(new since, condition held for longer than hold_time)``."""
+        if not active:
+            return None, False
+        if since is None:
+            return stamp, False
+        return since, stamp - since > hold_time
+
+    def _stop_condition(self, stamp: float, tau: float, rate: float, w: MiddleWrench
+                        ) -> tuple[str, bool]:
+        """Stop conditions (§4.9, CE-5): ``(message, success)``, ``('', False)`` to go on.
+
+        Thresholds only, never float equality. A dropped object reads as zero slip speed and
+        would look "settled", so a normal force below ``contact_lost_force`` (pads closing on
+        nothing) for ``contact_lost_time`` ends the trajectory first, as a failure.
+        """
+        p = self._p
+        self._lost_since, lost = self._held_for(
+            self._lost_since, w.normal_force < p.contact_lost_force, stamp, p.contact_lost_time)
+        if lost:
+            return 'contact lost', False
+        self._reverse_since, reversed_ = self._held_for(
+            self._reverse_since, p.direction_aware and self._reversed(rate), stamp,
+            p.reversal.time)
+        if reversed_:
+            return 'slip reversed', False
+        if self._x >= self._target or (tau >= self._traj.duration
+                                       and abs(rate) < self._stop_threshold()):
+            return 'done', True
+        if tau >= self._traj.duration + p.settle_timeout:
+            return 'timeout', False
+        return '', False
 
     def _result(self, success: bool, message: str, elapsed: float) -> SlipResult:
         return SlipResult(mode=self.mode, success=success, message=message,
@@ -653,6 +683,12 @@ class LinearController(_TrajectoryController):
             return s
         return v.vx * e[0] + v.vy * e[1]
 
+    def _progress_increment(self, d: MiddleTwist) -> float:
+        e = self._e
+        if not self._p.direction_aware or e is None:
+            return d.speed
+        return d.vx * e[0] + d.vy * e[1]
+
     def _slip_ratio(self, w: MiddleWrench) -> float:
         return w.tangential_force / self._c.mu_c
 
@@ -707,6 +743,12 @@ class RotationalController(_TrajectoryController):
             return abs(v.omega)
         return s * v.omega
 
+    def _progress_increment(self, d: MiddleTwist) -> float:
+        s = self._sigma
+        if not self._p.direction_aware or s is None:
+            return abs(d.omega)
+        return s * d.omega
+
     def _slip_ratio(self, w: MiddleWrench) -> float:
         return self._c.load(w) / self._c.mu_c
 
@@ -715,11 +757,26 @@ class RotationalController(_TrajectoryController):
         return g.kp, g.ki, g.kd, g.kw, g.slip_filter, g.floor, g.accel_gate
 
     def _extra_floor(self, w: MiddleWrench, v: MiddleTwist) -> float:
-        f = w.tangential_force / self._c.mu_c
-        kp_cop = self._p.rotational.kp_cop
-        if kp_cop > 0.0:
-            c = v.speed / (abs(v.omega) + OMEGA_GUARD)
-            f += kp_cop * max(0.0, c - self._c.r_guarded)
+        """Translation floor: ``margin·ft/μ_c`` + translation-speed term + kp_cop term [N].
+
+        While a pad turns on an elliptical limit surface under tangential load ``ft``, its
+        centre of rotation sits ``c = u/sqrt(1 − u²)·r`` from the pad centre (``u = ft/μN``):
+        at the bare floor ``ft/μ_c`` (u → 1) the grasp point slides away as the object turns.
+        The translation-speed term adds ``translation_gain·max(0, |v| − cor_limit·r·|ω|)``,
+        i.e. force only for translation beyond what a centre of rotation ``cor_limit·r`` away
+        explains; it has no division, so it cannot spike when ω crosses zero. The spec's
+        ``kp_cop·max(0, ‖c‖ − r)`` (``‖c‖ = |v|/(|ω| + 1e-3)``) does spike there, so it is
+        applied only while ``|ω| ≥ cop_min_rate`` and capped at ``cop_max_force``.
+        """
+        g = self._p.rotational
+        f = g.translation_margin * w.tangential_force / self._c.mu_c
+        omega = abs(v.omega)
+        if g.kp_cop > 0.0 and omega >= g.cop_min_rate:
+            c = v.speed / (omega + OMEGA_GUARD)
+            f += min(g.kp_cop * max(0.0, c - self._c.r_guarded), g.cop_max_force)
+        if g.translation_gain > 0.0:
+            excess = v.speed - g.cor_limit * self._c.r_guarded * omega
+            f += g.translation_gain * max(0.0, excess)
         return f
 
     def _reversed(self, rate: float) -> bool:

@@ -183,8 +183,20 @@ class RotationalParams:
     slip_filter: float = _f(0.95, '-', 0.0, 1.0, 'per-sample filter factor of f_slip')
     floor: float = _f(0.6, 'N', 0.0, 40.0, 'minimum desired grasp force')
     accel_gate: float = _f(0.3927, 'rad/s^2', 0.0, 100.0, 'f_slip is updated only below this')
+    translation_margin: float = _f(
+        1.0, '-', 1.0, 10.0,
+        'factor on ft/mu_c in the translation floor (1.0 = reference; 1.4 keeps the centre of '
+        'rotation within about r of the pad centre on an elliptical limit surface)')
     kp_cop: float = _f(0.0, 'N/m', 0.0, 100000.0,
                        'translation floor gain on the centre-of-rotation distance beyond r')
+    cop_min_rate: float = _f(0.026, 'rad/s', 0.0, 10.0,
+                             'the kp_cop term is applied only while |omega| is at least this')
+    cop_max_force: float = _f(5.0, 'N', 0.0, 100.0, 'cap of the kp_cop term')
+    translation_gain: float = _f(
+        300.0, 'N/(m/s)', 0.0, 10000.0,
+        'force per grasp-point translation speed beyond cor_limit*r*|omega|')
+    cor_limit: float = _f(1.0, '-', 0.0, 100.0,
+                          'allowed centre-of-rotation offset, in units of r')
     stop_rate: float = _f(0.006, 'rad/s', 0.0, 1.0,
                           'after T, the trajectory ends once |omega| is below this')
 
@@ -242,6 +254,12 @@ class SlipControllerParams:
     latch_rate: float = _f(0.026, 'rad/s', 0.0, 1.0,
                            '(addition) rate at which the rotation sign is latched (2 counts)')
     reversal: ReversalParams = _group(ReversalParams)
+    contact_lost_force: float = _f(
+        0.25, 'N', 0.0, 10.0,
+        '(addition) a trajectory ends with "contact lost" when the measured normal force '
+        'stays below this')
+    contact_lost_time: float = _f(0.1, 's', 0.0, 10.0,
+                                  '(addition) how long the normal force must stay below')
     min_duration: float = _f(0.1, 's', 1e-3, 10.0, '(addition) shortest trajectory duration')
     max_duration: float = _f(60.0, 's', 0.1, 3600.0, '(addition) longest trajectory duration')
     max_linear_distance: float = _f(0.1, 'm', 1e-4, 1.0,

@@ -313,7 +313,9 @@ def build_sequence(mode: str, params: ExperimentRunnerParams, *, duration: float
         duration: [s] for ``hold_mode``, ``linear_slippage``, ``rotational_slippage``
             (``demo``: 0 = 2 s).
         distance: [m] for ``linear_slippage`` (``demo``: 0 = 0.02 m).
-        angle: [rad] for ``rotational_slippage`` (``demo``: 0 = 20°).
+        angle: [rad] for ``rotational_slippage`` (``demo``: 0 = 20°). Like LINEAR's direction,
+            the rotation sign is latched from the first motion (gravity turns the object, as
+            the set-up of §5.5 arranges), so only ``|angle|`` matters here.
         recording_name: Bag name (≥ 3 characters to record).
 
     Raises:
@@ -327,7 +329,8 @@ def build_sequence(mode: str, params: ExperimentRunnerParams, *, duration: float
     rec_start, rec_stop = b.record(recording_name)
     linear = ModeRequest(int(SlipMode.LINEAR), duration=duration, distance=distance,
                          latch_direction=True)
-    rotational = ModeRequest(int(SlipMode.ROTATIONAL), duration=duration, angle=angle)
+    rotational = ModeRequest(int(SlipMode.ROTATIONAL), duration=duration, angle=angle,
+                             latch_direction=True)
 
     def need(*names: str) -> None:
         vals = {'duration': duration, 'distance': distance, 'angle': angle}

@@ -24,7 +24,7 @@ evaluation time ``t`` passed in by the caller (node clock or replay clock), neve
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from slip_gripper_driver.core.frames import FrameParams, planar_to_middle
 
@@ -94,33 +94,80 @@ class TwistSample:
             math.isfinite(x) for x in (self.vx, self.vy, self.omega, self.stamp))
 
 
+#: Longest sample interval a finger's travel integrates across [s]; a longer gap (stream
+#: restarted, sensor unplugged) is not bridged with the new sample's velocity.
+MAX_TRAVEL_SPAN = 0.1
+
+
+@dataclass(frozen=True, slots=True)
+class Travel:
+    """Slip displacement of one finger, integrated over its own sample stamps (``vel_sensor_k``).
+
+    Each sample's velocity is the sensor's mean over the interval since its previous sample
+    (the chips report displacement per frame), so ``Σ v·Δstamp`` is the displacement whatever
+    rate a consumer samples the stream at: a control step that sees only every third sample
+    (executor backlog, DDS burst) still gets the full progress from the travel difference.
+
+    Attributes:
+        x: Integrated slip along x [m].
+        y: Integrated slip along y [m].
+        theta: Integrated rotation about z [rad].
+        stamp: Stamp of the last sample taken in [s] (``None`` before the first).
+    """
+
+    x: float = 0.0
+    y: float = 0.0
+    theta: float = 0.0
+    stamp: float | None = None
+
+    def advanced(self, sample: TwistSample) -> Travel:
+        """Travel after ``sample``: integrated over ``0 < Δstamp ≤ MAX_TRAVEL_SPAN``.
+
+        A repeated stamp changes nothing; an older stamp (clock jumped back), a longer gap or
+        an unusable sample (NaN, marked invalid) re-bases the stamp without integrating.
+        """
+        last = self.stamp
+        if last is not None and sample.stamp == last:
+            return self
+        if (last is None or not sample.usable()
+                or not 0.0 < sample.stamp - last <= MAX_TRAVEL_SPAN):
+            return Travel(self.x, self.y, self.theta, sample.stamp)
+        dt = sample.stamp - last
+        return Travel(self.x + sample.vx * dt, self.y + sample.vy * dt,
+                      self.theta + sample.omega * dt, sample.stamp)
+
+
 @dataclass(frozen=True, slots=True)
 class SensorSnapshot:
-    """Latest sample of each stream (``None`` until the first one arrives).
+    """Latest sample of each stream (``None`` until the first one arrives), plus each finger's
+    integrated `Travel`.
 
-    Sensor callbacks build a new snapshot (``snapshot.with_twist(1, sample)``) and replace the
-    node's reference in one assignment (CE-8); cores only read it.
+    Sensor callbacks build a new snapshot (``snapshot.with_twist(1, sample)``, for every sample
+    so the travel sees them all) and replace the node's reference in one assignment (CE-8);
+    cores only read it.
     """
 
     wrench_1: WrenchSample | None = None
     wrench_2: WrenchSample | None = None
     twist_1: TwistSample | None = None
     twist_2: TwistSample | None = None
+    travel_1: Travel = Travel()
+    travel_2: Travel = Travel()
 
     def with_wrench(self, finger: int, sample: WrenchSample) -> SensorSnapshot:
         """Copy with finger ``finger``'s wrench replaced."""
         if finger == 1:
-            return SensorSnapshot(sample, self.wrench_2, self.twist_1, self.twist_2)
+            return replace(self, wrench_1=sample)
         if finger == 2:
-            return SensorSnapshot(self.wrench_1, sample, self.twist_1, self.twist_2)
+            return replace(self, wrench_2=sample)
         raise ValueError(f'finger must be 1 or 2, got {finger!r}')
 
     def with_twist(self, finger: int, sample: TwistSample) -> SensorSnapshot:
-        """Copy with finger ``finger``'s twist replaced."""
+        """Copy with finger ``finger``'s twist replaced and its travel advanced."""
         if finger == 1:
-            return SensorSnapshot(self.wrench_1, self.wrench_2, sample, self.twist_2)
+            return replace(self, twist_1=sample, travel_1=self.travel_1.advanced(sample))
         if finger == 2:
-            return SensorSnapshot(self.wrench_1, self.wrench_2, self.twist_1, sample)
+            return replace(self, twist_2=sample, travel_2=self.travel_2.advanced(sample))
         raise ValueError(f'finger must be 1 or 2, got {finger!r}')
 
 
@@ -258,4 +305,18 @@ def combine_twists(frames: FrameParams, v1: TwistSample, v2: TwistSample) -> Mid
     """
     x1, y1, z1 = planar_to_middle(frames, 1, v1.vx, v1.vy, v1.omega)
     x2, y2, z2 = planar_to_middle(frames, 2, v2.vx, v2.vy, v2.omega)
+    return MiddleTwist(vx=0.5 * (x1 + x2), vy=0.5 * (y1 + y2), omega=0.5 * (z1 + z2))
+
+
+def middle_travel_delta(frames: FrameParams, before: tuple[Travel, Travel],
+                        after: tuple[Travel, Travel]) -> MiddleTwist:
+    """Mean slip displacement of both fingers in ``gripper_middle`` between two snapshots.
+
+    Returns a `MiddleTwist` whose fields are displacements (``vx``, ``vy`` [m], ``omega``
+    [rad]), not rates: the frame change of §1.2 is linear, so it applies to displacements too.
+    """
+    x1, y1, z1 = planar_to_middle(frames, 1, after[0].x - before[0].x,
+                                  after[0].y - before[0].y, after[0].theta - before[0].theta)
+    x2, y2, z2 = planar_to_middle(frames, 2, after[1].x - before[1].x,
+                                  after[1].y - before[1].y, after[1].theta - before[1].theta)
     return MiddleTwist(vx=0.5 * (x1 + x2), vy=0.5 * (y1 + y2), omega=0.5 * (z1 + z2))

@@ -127,18 +127,20 @@ def stream(truth: tuple[TrueContact, TrueContact], t: NDArray[np.float64],
         out_tw.append((vx, vy, om))
     ft_lag = rng.uniform(0.0, 0.002, n)
     snaps = []
+    snap = SensorSnapshot()
+    (a1, b1, c1, d1), (a2, b2, c2, d2) = out_w
+    (x1, y1, o1), (x2, y2, o2) = out_tw
     for i in range(n):
         ts = t0 + float(t[i])
-        (a1, b1, c1, d1), (a2, b2, c2, d2) = out_w
-        (x1, y1, o1), (x2, y2, o2) = out_tw
-        snaps.append(SensorSnapshot(
-            wrench_1=WrenchSample(float(a1[i]), float(b1[i]), float(c1[i]), float(d1[i]),
-                                  ts - float(ft_lag[i])),
-            wrench_2=WrenchSample(float(a2[i]), float(b2[i]), float(c2[i]), float(d2[i]),
-                                  ts - float(ft_lag[i])),
-            twist_1=TwistSample(float(x1[i]), float(y1[i]), float(o1[i]), ts),
-            twist_2=TwistSample(float(x2[i]), float(y2[i]), float(o2[i]),
-                                ts - noise.finger_2_delay)))
+        snap = (snap
+                .with_wrench(1, WrenchSample(float(a1[i]), float(b1[i]), float(c1[i]),
+                                             float(d1[i]), ts - float(ft_lag[i])))
+                .with_wrench(2, WrenchSample(float(a2[i]), float(b2[i]), float(c2[i]),
+                                             float(d2[i]), ts - float(ft_lag[i])))
+                .with_twist(1, TwistSample(float(x1[i]), float(y1[i]), float(o1[i]), ts))
+                .with_twist(2, TwistSample(float(x2[i]), float(y2[i]), float(o2[i]),
+                                           ts - noise.finger_2_delay)))
+        snaps.append(snap)
     return snaps
 
 
