@@ -5,13 +5,17 @@ Runs `slip_control.core.sim_evaluation.evaluate_all` on the simulated cell (no R
 sim time, deterministic for a seed) and prints the table of issue 7 item 4: per reference
 object the μ_c and r estimation errors per finger, LINEAR 2 cm / 2 s and 4 cm / 5 s and
 ROTATIONAL 20° / 2 s and 45° / 5 s final errors, peak slip under HOLD disturbances, and the
-hinge through 60°, all measured from the simulator truth.
+hinge through 60°, all measured from the simulator truth. Then, unless ``--quick`` or
+``--no-online``, the ONLINE estimator (§3.6) is judged by `online_refinement`: started from the
+true μ_c and r times 0.8 and 1.2, refined during a LINEAR and a ROTATIONAL slip (≈ 3 s wall per
+preset and start).
 
 Examples::
 
     slip_evaluate                           # the four reference objects (~20-60 s)
     slip_evaluate --preset cardboard --quick
     slip_evaluate --preset wood,case --truth-properties
+    slip_evaluate --no-online               # skip the online-refinement table
 """
 from __future__ import annotations
 
@@ -20,8 +24,10 @@ import sys
 import time
 from collections.abc import Sequence
 
-from slip_control.core.sim_evaluation import (REFERENCE_PRESETS, EvalSettings, EvaluationError,
-                                              evaluate_all, format_table)
+from slip_control.core.sim_evaluation import (ONLINE_START_SCALES, REFERENCE_PRESETS,
+                                              EvalSettings, EvaluationError, evaluate_all,
+                                              format_online_table, format_table,
+                                              online_refinement)
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -33,7 +39,11 @@ def _parser() -> argparse.ArgumentParser:
                    help='object preset(s); repeatable or comma-separated '
                         f'(default: {", ".join(REFERENCE_PRESETS)})')
     p.add_argument('--quick', action='store_true',
-                   help='only the 2 s trajectories, no pick-up (about half the time)')
+                   help='only the 2 s trajectories, no pick-up, no online refinement '
+                        '(about half the time)')
+    p.add_argument('--no-online', action='store_true',
+                   help='skip the online-refinement table (ONLINE estimator from a start '
+                        'off by 0.8x/1.2x)')
     p.add_argument('--truth-properties', action='store_true',
                    help='controllers use the simulator\'s true contact properties instead of '
                         'the estimate of the same run')
@@ -77,11 +87,20 @@ def main(argv: Sequence[str] | None = None) -> int:
 
         rows = evaluate_all(presets, settings, quick=ns.quick,
                             use_truth=ns.truth_properties, progress=progress)
+        online = []
+        if not (ns.quick or ns.no_online):
+            for name in presets:
+                for scale in ONLINE_START_SCALES:
+                    progress(f'{name}: online refinement from {scale:g}x')
+                    online.append(online_refinement(name, scale, settings))
     except (KeyError, ValueError, EvaluationError) as exc:
         message = exc.args[0] if isinstance(exc, KeyError) and exc.args else exc
         print(f'slip_evaluate: error: {message}', file=sys.stderr)
         return 1
     print(format_table(rows))
+    if online:
+        print()
+        print(format_online_table(online))
     print(f'\n(physics_dt {settings.physics_dt:g} s, seed {settings.seed}, velocity sensor '
           f'{settings.velocity_model}; {time.monotonic() - t0:.1f} s wall)')
     return 0

@@ -229,7 +229,10 @@ def test_presets_from_csv_and_yaml(tmp_path: Path) -> None:
 
 
 def _online_estimator(init: ContactProperties) -> ContactEstimator:
-    p = ContactEstimatorParams(online=EstimatorOnlineParams(enabled=True))
+    # The synthetic streams and the toy plant generate torques from the ellipsoidal limit
+    # surface (exponent 2), not from the disc pads of the simulated cell (1.7, the default).
+    p = ContactEstimatorParams(online=EstimatorOnlineParams(enabled=True,
+                                                            limit_surface_exponent=2.0))
     est = ContactEstimator(p, init)
     out = est.start(EstimationPhase.ONLINE, 0.0, 0.0)
     assert out.accepted, out.message

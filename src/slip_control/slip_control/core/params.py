@@ -86,19 +86,32 @@ class EstimatorOnlineParams:
                           'sliding speed needed for a mu_c update')
     max_abs_omega: float = _f(0.3, 'rad/s', 0.0, 10.0,
                               'rotation rate above which no mu_c update is made')
-    forgetting: float = _f(0.99, '-', 0.5, 1.0,
-                           '(addition) RLS forgetting factor per sample (0.99 = ~100 samples)')
+    forgetting: float = _f(0.999, '-', 0.5, 1.0,
+                           '(addition) RLS forgetting factor per sample (0.999 = ~1000 samples)')
     force_noise: float = _f(0.05, 'N', 1e-6, 10.0,
                             '(addition) 1-sigma noise of the tangential force')
     torque_noise: float = _f(0.0005, 'N*m', 1e-9, 1.0,
                              '(addition) 1-sigma noise of the torque')
-    initial_std_mu_c: float = _f(0.05, '-', 1e-6, 2.0,
+    initial_std_mu_c: float = _f(0.15, '-', 1e-6, 2.0,
                                  '(addition) prior 1-sigma of mu_c (lower bound of the fit std)')
-    initial_std_mu_v: float = _f(5.0, '1/(m/s)', 1e-6, 100.0,
+    initial_std_mu_v: float = _f(2.0, '1/(m/s)', 1e-6, 100.0,
                                  '(addition) prior 1-sigma of mu_v')
     initial_std_r: float = _f(0.002, 'm', 1e-7, 0.05,
                               '(addition) prior 1-sigma of r (lower bound of the fit std)')
-    min_updates: int = _i(20, 1, 100000,
+    min_normal_force: float = _f(0.3, 'N', 0.0, 100.0,
+                                 '(addition) skip online samples with f_n below this (sliding '
+                                 'in the air happens at the controllers\' force floor)')
+    limit_surface_exponent: float = _f(1.7, '-', 1.0, 2.0,
+                                       '(addition) exponent n of the pad limit surface '
+                                       '(f_t/(mu_c f_n))^n + (tau/(mu_c r f_n))^n = 1 used '
+                                       'for r: 2 = ellipsoid, 1.7 = uniformly pressed disc')
+    max_load_ratio: float = _f(0.9, '-', 0.1, 1.0,
+                               '(addition) r is updated only while the Coulomb part of f_t is '
+                               'at most this fraction of mu_c f_n')
+    r_needs_mu_c_rel_std: float = _f(0.08, '-', 0.0, 1.0,
+                                     '(addition) r is updated only while the 1-sigma of mu_c '
+                                     'is at most this fraction of mu_c')
+    min_updates: int = _i(10, 1, 100000,
                           '(addition) updates before the online result is published')
     publish_period: float = _f(0.2, 's', 0.0, 10.0,
                                '(addition) minimum time between published online updates')

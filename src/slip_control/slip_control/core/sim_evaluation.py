@@ -1078,6 +1078,29 @@ def online_refinement(preset: str, start_scale: float = 0.8,
         published_rotational=pub_rot, dropped=drop_lin or drop_rot)
 
 
+#: Starting errors of `online_refinement` in the table: true ``μ_c`` and ``r`` times these.
+ONLINE_START_SCALES: tuple[float, ...] = (0.8, 1.2)
+
+
+def format_online_table(outcomes: Sequence[OnlineOutcome]) -> str:
+    """Table of `online_refinement` outcomes: largest relative error over the two fingers,
+    start → online, for ``μ_c`` (after the LINEAR slide) and ``r`` (after the ROTATIONAL slip).
+    """
+    lines = ['Online refinement (ONLINE during LINEAR 2 cm/2 s, then ROTATIONAL 20 deg/2 s; '
+             'max relative error over the fingers)',
+             f'{"preset":<10} {"start":>5}  {"mu_c err start->online":>22}  '
+             f'{"r err start->online":>19}  {"published":>9}  {"drops":>5}']
+    for o in outcomes:
+        pub = '/'.join('yes' if b else 'no' for b in (o.published_linear,
+                                                       o.published_rotational))
+        lines.append(
+            f'{o.preset:<10} {o.start_scale:>4.2f}x  '
+            f'{100 * o.mu_c_error_start:>8.1f} % -> {100 * o.mu_c_error_online:>5.1f} %  '
+            f'{100 * o.r_error_start:>5.1f} % -> {100 * o.r_error_online:>5.1f} %  {pub:>9}  '
+            f'{int(o.dropped):>5}')
+    return '\n'.join(lines)
+
+
 # ---------------------------------------------------------------------------------------------
 # Hinge
 # ---------------------------------------------------------------------------------------------
