@@ -253,3 +253,22 @@ def test_simulator_api_two_pads() -> None:
     wb = pads.step(np.array([[0.01, 0.0, 0.5], [0.01, 0.0, -0.5]]), 1e-3, f_n=[2.0, 2.0])
     assert wb.fx[0] == pytest.approx(w.fx) and wb.tau[0] == pytest.approx(w.tau)
     assert wb.tau[1] == pytest.approx(-w.tau) and wb.at_pad().shape == (2, 3)
+
+
+@pytest.mark.parametrize('model', ['reduced', 'distributed'])
+@pytest.mark.parametrize('options', [
+    {}, {'elasto_plastic': False}, {'integrator': 'explicit_euler', 'rate_limiter': True},
+    {'force_from': 'post_update'}])
+def test_advance_equals_step(model: str, options: dict[str, object]) -> None:
+    """The coupling's float entry point gives exactly `step`'s numbers and state."""
+    surface = line_grad(11, 0.01)
+    cls = ReducedPlanarLuGre if model == 'reduced' else DistributedPlanarLuGre
+    a = cls(surface, P, **options)  # type: ignore[arg-type]
+    b = cls(surface, P, **options)  # type: ignore[arg-type]
+    rng = np.random.default_rng(9)
+    for k in range(80):
+        vx, vy, om = (rng.normal(scale=[0.004, 0.004, 0.4]) * (k % 5 != 2)).tolist()
+        f_n = 1.0 + 0.01 * k
+        wa = a.step((vx, vy, om), 1e-4, f_n)
+        assert tuple(b.advance(vx, vy, om, 1e-4, f_n)) == tuple(wa)
+    np.testing.assert_array_equal(a.state, b.state)

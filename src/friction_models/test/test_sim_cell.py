@@ -6,18 +6,22 @@ import csv
 import math
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from slip_gripper_driver.core.force_control import BypassReason
 from slip_gripper_driver.core.frames import FrameParams, planar_to_middle
 from slip_gripper_driver.core.param_schema import ParameterError, flatten, from_flat
+from slip_gripper_driver.core.protocol import encode_force_command
+from slip_velocity_sensor.core.chip_model import ChipModelParams, CountQuantizer
+from slip_velocity_sensor.core.fusion import FusionParams, RigidBodyFusion
 
 from friction_models.core.harness import Harness
 from friction_models.core.presets import (ContactPreset, ObjectPreset, PresetError,
                                           load_presets, preset_from_dict, reference_presets)
 from friction_models.core.sensors import (FtSensorParams, MotorEncoder, SimEvents,
-                                          VelocitySensorParams)
-from friction_models.core.sim_cell import SimCell, SimParams
+                                          VelocitySensor, VelocitySensorParams)
+from friction_models.core.sim_cell import SimCell, SimParams, encoded_voltage
 
 CONFIG = Path(__file__).resolve().parents[1] / 'config' / 'sim_presets.yaml'
 CSV = Path('/work/shared/data/contact_estimates_reference.csv')
@@ -416,3 +420,45 @@ def test_events_merge_in_time_order() -> None:
     ev = cell.advance(0.02)
     kinds = [type(e).__name__ for e in ev if e.stamp == pytest.approx(0.002)]
     assert kinds == ['FtSample', 'FtSample', 'TelemetrySample']
+
+
+# ---------------------------------------------------------------------------- driver parity
+def test_command_voltage_equals_the_drivers_encoding() -> None:
+    # The cell quantises the voltage without building the command bytes; it must be exactly
+    # the value the driver's encoder sends (ceiling, ±limit clip, 0.01 V, −0.00 → 0).
+    k, close, open_, limit = 3.9166, 45.0, 8.0, 20.0
+    rng = np.random.default_rng(4)
+    forces = np.concatenate([
+        rng.uniform(-60.0, 60.0, 20000),
+        rng.normal(0.0, 0.05, 5000),                          # around 0 V (−0.00)
+        (np.arange(-2000, 2000) + 0.5) * 0.01 * -k,           # exact ties of the rounding
+        np.nextafter((np.arange(-400, 400) + 0.5) * 0.01 * -k, 0.0)]).tolist()
+    for f in forces + [0.0, -0.0, close, -open_, 1e9, -1e9]:
+        expected = encode_force_command(f, newton_per_volt=k, max_close_force_n=close,
+                                        max_open_force_n=open_, voltage_limit_v=limit)[1]
+        got = encoded_voltage(f, k, close, open_, limit)
+        assert got == expected and math.copysign(1.0, got) == math.copysign(1.0, expected), f
+    assert encoded_voltage(math.nan, k, close, open_, limit) == 0.0
+
+
+@pytest.mark.parametrize('noise', [0.0, 0.8])
+def test_chip_counts_follow_the_count_quantizer(noise: float) -> None:
+    # The sensor evaluates the chips' counter model with floats; the package's array
+    # implementation is the reference (carried remainders, saturation, count noise).
+    params = VelocitySensorParams(count_noise_std=noise, poll_period=0.004)
+    sensor = VelocitySensor(1, params, (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0),
+                            np.random.default_rng(3))
+    polls = max(1, int(round(sensor.period / params.poll_period)))
+    chip = ChipModelParams(max_counts=127 * polls, count_noise_std=noise,
+                           poll_period=params.poll_period)
+    quantizer = CountQuantizer(6, chip, np.random.default_rng(3) if noise else None)
+    a = RigidBodyFusion(FusionParams(radius=params.radius)).matrix
+    gains = np.asarray(params.chip_gains_1)
+    rng = np.random.default_rng(5)
+    saturated = 0
+    for k in range(3000):
+        d = rng.normal(scale=[5e-5, 5e-5, 2e-3]) * (10.0 ** rng.integers(-3, 3))
+        expected = quantizer.read(gains * (a @ d))
+        saturated += int(np.any(np.abs(expected) == chip.max_counts))
+        assert sensor._read_counts(*d.tolist()) == expected.tolist(), k
+    assert saturated > 0

@@ -451,6 +451,18 @@ class DistributedPlanarLuGre:
         self._z, self._z_next = zn_next, z
         return self._finish(fx, fy, tau, vx, vy, om)
 
+    def advance(self, vx: float, vy: float, om: float, dt: float,
+                f_n: float) -> tuple[float, float, float, float]:
+        """``step((vx, vy, om), dt, f_n)`` for a pad-centre twist given as floats.
+
+        The interface the rigid-body coupling shares with
+        :meth:`~friction_models.core.reduced.ReducedPlanarLuGre.advance`.
+
+        Returns:
+            The `Wrench` fields ``(fx, fy, τ_pad, τ_cop)`` [N, N, N·m, N·m].
+        """
+        return self.step((vx, vy, om), dt, f_n)
+
     def _finish(self, fx: float, fy: float, tau: float, vx: float, vy: float,
                 om: float) -> Wrench:
         p = self._params

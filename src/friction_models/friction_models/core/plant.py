@@ -304,6 +304,7 @@ class FingerActuator:
         self.f_stop = 0.0     #: pad–pad force at the closed stop [N]
         self._damp = params.guide_damping + \
             params.newton_per_volt * params.back_emf / params.opening_per_rad
+        self._first_order = params.model == 'first_order'
 
     def place(self, opening: float) -> None:
         """Set the opening at rest (no force)."""
@@ -325,7 +326,7 @@ class FingerActuator:
         v = min(max(voltage_v, -p.max_phase_voltage), p.max_phase_voltage)
         drive = p.newton_per_volt * v
         x0 = self.x
-        if p.model == 'first_order' and width >= 0.0 and (x0 <= width or self.f_n > 0.0):
+        if self._first_order and width >= 0.0 and (x0 <= width or self.f_n > 0.0):
             target = max(0.0, -drive)
             self.f_n += (target - self.f_n) * (1.0 - math.exp(-dt / p.time_constant))
             if target <= 0.0 and self.f_n < 1e-3 and drive > 0.0:
@@ -339,26 +340,25 @@ class FingerActuator:
             return
         h = dt / self._damp
         kc, ks = p.contact_stiffness, p.stop_stiffness
+        on_object = width >= 0.0
         x1 = x0
         guess = x0
         for _ in range(3):
-            k_sum = 0.0
-            kw = 0.0
-            if width >= 0.0 and guess < width:
-                k_sum += kc
-                kw += kc * width
+            # Springs active at the guess: object compliance (x < w), closed stop (x < 0).
+            squeezed = on_object and guess < width
+            k_sum = kc if squeezed else 0.0
+            kw = kc * width if squeezed else 0.0
             if guess < 0.0:
                 k_sum += ks
             x1 = (x0 + h * (drive + kw)) / (1.0 + h * k_sum)
-            if (width >= 0.0 and x1 < width) == (width >= 0.0 and guess < width) and \
-                    (x1 < 0.0) == (guess < 0.0):
+            if (on_object and x1 < width) == squeezed and (x1 < 0.0) == (guess < 0.0):
                 break
             guess = x1
         if x1 > p.stroke:
             x1 = p.stroke
         self.rate = (x1 - x0) / dt
         self.x = x1
-        self.f_n = kc * (width - x1) if (width >= 0.0 and x1 < width) else 0.0
+        self.f_n = kc * (width - x1) if (on_object and x1 < width) else 0.0
         self.f_stop = ks * (-x1) if x1 < 0.0 else 0.0
 
 
@@ -409,6 +409,7 @@ class PadContact:
                              sigma0=settings.sigma0, sigma1=settings.sigma1,
                              sigma2=max(contact.mu_v, 0.0), r_ba=settings.r_ba)
         self.params = params
+        self._neg_sigma0 = -params.sigma0
         if model == 'reduced' and settings.limit_surface:
             table = cache.get(base, settings.n_ls)
             surface = base.scaled(contact.r / table.r_a)
@@ -431,6 +432,7 @@ class PadContact:
         self.r_a = contact.r
         cx, cy = surface.cop
         self.cx, self.cy = float(cx), float(cy)
+        self.cop = (self.cx, self.cy)   #: centre of pressure in the pad frame [m]
         j_c = float(surface.second_moment)
         self.j_c = j_c
         # middle -> pad (P) and pad -> middle (P^T, checked against planar_to_middle).
@@ -450,7 +452,6 @@ class PadContact:
         self.d_stick_pad = self._pad_matrix(*self._d_stick_cop)
         self.d_visc_pad = self._pad_matrix(*self._d_visc_cop)
         self._sym_stick = _sym6(self.d_stick_pad)
-        self._sym_visc = _sym6(self.d_visc_pad)
         if not self.reduced:
             w = surface.pressure
             xs, ys = surface.cell_centres()
@@ -465,22 +466,21 @@ class PadContact:
         d = (a, 0.0, 0.0, 0.0, a, 0.0, 0.0, 0.0, b)
         return _mm(_tr(t), _mm(d, t))
 
-    def world_matrices(self, phi: float) -> tuple[tuple[float, ...], tuple[float, ...],
-                                                  tuple[float, ...]]:
-        """``Q_k(φ)`` (world axes → pad) and ``Q_kᵀ D Q_k`` for the stick and viscous D."""
+    def world_matrices(self, phi: float) -> tuple[tuple[float, ...], tuple[float, ...]]:
+        """``Q_k(φ)`` (world axes → pad) and ``Q_kᵀ D Q_k`` for the stick damping D."""
         c, s = math.cos(phi), math.sin(phi)
         p = self.p_mid_to_pad
         # Q = P · diag(R(φ)ᵀ, 1): world -> middle -> pad (columns 0, 1 rotate).
         q = (p[0] * c - p[1] * s, p[0] * s + p[1] * c, p[2],
              p[3] * c - p[4] * s, p[3] * s + p[4] * c, p[5],
              p[6] * c - p[7] * s, p[6] * s + p[7] * c, p[8])
-        return q, _congruence(q, self._sym_stick), _congruence(q, self._sym_visc)
+        return q, _congruence(q, self._sym_stick)
 
     def spring(self, f_n: float) -> tuple[float, float, float]:
         """Bristle spring wrench ``−σ0 f_n z`` at the pad centre, pad frame [N, N, N·m]."""
-        k = -self.params.sigma0 * f_n
+        k = self._neg_sigma0 * f_n
         if self.reduced:
-            z0, z1, z2 = self.model.state.tolist()
+            z0, z1, z2 = self.model.state_tuple
             fx, fy = k * z0, k * z1
             return fx, fy, k * z2 + self.cx * fy - self.cy * fx
         z = self.model.state
@@ -560,7 +560,6 @@ class _PadWorld(NamedTuple):
 
     q: tuple[float, ...]        #: world -> pad map Q_k (row-major)
     d_stick: tuple[float, ...]  #: Q_kᵀ D̂_stick Q_k per newton of normal force
-    d_visc: tuple[float, ...]   #: Q_kᵀ D̂_visc Q_k per newton of normal force
     cx: float                   #: CoP in world axes relative to the gripper centre [m]
     cy: float
     r_a: float                  #: characteristic radius [m]
@@ -627,9 +626,13 @@ class Plant:
         self._inertia = inertia
         self._m_dt = m / self.dt
         self._i_dt = inertia / self.dt
+        self._weight = m * self.gravity
         gx, gy = preset.com_offset
-        # Corners relative to the CoM, object frame.
         hw = 0.5 * preset.width
+        # The face the pads can touch: CoM offset, half width, extent below/above the grasp
+        # point (object frame).
+        self._face = (gx, gy, hw, preset.height_below, preset.height_above)
+        # Corners relative to the CoM, object frame.
         self._corners = tuple((cx - gx, cy - gy) for cx, cy in (
             (-hw, -preset.height_below), (hw, -preset.height_below),
             (hw, preset.height_above), (-hw, preset.height_above)))
@@ -688,12 +691,12 @@ class Plant:
     # ------------------------------------------------------------------ geometry
     def _object_between(self) -> bool:
         """True while the gripper centre lies on the object's face (pads can touch it)."""
-        p = self.preset
+        gx, gy, half_width, below, above = self._face
         c, s = math.cos(self.th), math.sin(self.th)
         dx, dy = self.xg - self.X, self.yg - self.Y
-        bx = c * dx + s * dy + p.com_offset[0]      # object frame, relative to G
-        by = -s * dx + c * dy + p.com_offset[1]
-        return abs(bx) <= 0.5 * p.width and -p.height_below <= by <= p.height_above
+        bx = c * dx + s * dy + gx      # object frame, relative to G
+        by = -s * dx + c * dy + gy
+        return abs(bx) <= half_width and -below <= by <= above
 
     def grasp_relative(self) -> tuple[float, float, float, float, float, float]:
         """Grasp point pose and twist relative to the gripper, ``gripper_middle`` axes.
@@ -739,7 +742,7 @@ class Plant:
             for pad in self.pads:
                 k = 0.5 * pad.params.sigma0 * self.f_n
                 if pad.reduced:
-                    z0, z1, z2 = pad.model.state.tolist()
+                    z0, z1, z2 = pad.model.state_tuple
                     e += k * (z0 * z0 + z1 * z1 + (z2 / pad.r_a) ** 2)
                 else:
                     z = pad.model.state
@@ -754,17 +757,17 @@ class Plant:
     def _pad_world(self, phi: float) -> tuple[_PadWorld, _PadWorld]:
         """Per-φ constants of both pads in world axes (cached while φ is unchanged).
 
-        Per pad: ``Q_k`` (world → pad, row-major), ``Q_kᵀ D̂ Q_k`` for the stick and the viscous
-        damping per newton of normal force, the CoP in world axes relative to the gripper
-        centre, ``r_a`` and ``μ_s``.
+        Per pad: ``Q_k`` (world → pad, row-major), ``Q_kᵀ D̂ Q_k`` for the stick damping per
+        newton of normal force, the CoP in world axes relative to the gripper centre, ``r_a``
+        and ``μ_s``.
         """
         if phi != self._qcache_phi:
             out = []
             for pad in self.pads:
-                q, ds, dv = pad.world_matrices(phi)
+                q, ds = pad.world_matrices(phi)
                 cwx = q[0] * pad.cx + q[3] * pad.cy
                 cwy = q[1] * pad.cx + q[4] * pad.cy
-                out.append(_PadWorld(q, ds, dv, cwx, cwy, pad.r_a, pad.params.mu_s))
+                out.append(_PadWorld(q, ds, cwx, cwy, pad.r_a, pad.params.mu_s))
             self._qcache = (out[0], out[1])
             d1, d2 = out[0][1], out[1][1]
             a0, a1, a2 = d1[0] + d2[0], d1[4] + d2[4], d1[8] + d2[8]
@@ -814,17 +817,17 @@ class Plant:
         # ---------------------------------------------------------------- external load
         m_dt, i_dt = self._m_dt, self._i_dt
         r0 = m_dt * self.VX
-        r1 = m_dt * self.VY - self._m * self.gravity
+        r1 = m_dt * self.VY - self._weight
         r2 = i_dt * self.W
         if self.disturbances:
             r0, r1, r2 = self._add_disturbances(t1, phi, r0, r1, r2)
         corners = self._table_candidates() if self.table.enabled else ()
         dx, dy = xg - self.X, yg - self.Y
         if contact:
-            ux, uy, uw, hc, rc = self._solve_with_pads(
-                f_n, phi, dx, dy, vxg, vyg, wg, r0, r1, r2, corners)
+            ux, uy, uw = self._solve_with_pads(f_n, phi, dx, dy, vxg, vyg, wg, r0, r1, r2,
+                                               corners)
         elif corners:
-            ux, uy, uw, hc, rc = self._solve_table_only(r0, r1, r2, corners)
+            ux, uy, uw = self._solve_table_only(r0, r1, r2, corners)
         else:
             ux, uy, uw = r0 / m_dt, r1 / m_dt, r2 / i_dt
         if not contact:
@@ -874,13 +877,10 @@ class Plant:
         return r0, r1, r2
 
     def _solve_table_only(self, r0: float, r1: float, r2: float,
-                          corners: tuple[list[float], ...]
-                          ) -> tuple[float, float, float, list[float], list[float]]:
+                          corners: tuple[list[float], ...]) -> tuple[float, float, float]:
         """Object on the table, no pad contact: active-set iteration over the corners."""
         m_dt, i_dt = self._m_dt, self._i_dt
         ux = uy = uw = 0.0
-        hc: list[float] = [0.0] * 9
-        rc = [0.0, 0.0, 0.0]
         for _ in range(10):
             hc, rc = self._table_terms(corners)
             h = [m_dt + hc[0], hc[1], hc[2], hc[3], m_dt + hc[4], hc[5], hc[6], hc[7],
@@ -888,22 +888,20 @@ class Plant:
             ux, uy, uw = _solve3(h, r0 + rc[0], r1 + rc[1], r2 + rc[2])
             if not self._table_update_modes(corners, ux, uy, uw):
                 break
-        return ux, uy, uw, hc, rc
+        return ux, uy, uw
 
     def _solve_with_pads(self, f_n: float, phi: float, dx: float, dy: float, vxg: float,
                          vyg: float, wg: float, r0: float, r1: float, r2: float,
-                         corners: tuple[list[float], ...]
-                         ) -> tuple[float, float, float, list[float], list[float]]:
+                         corners: tuple[list[float], ...]) -> tuple[float, float, float]:
         """Implicit stick prediction, stick/slide active set, library step, final velocity.
 
-        See the module docstring ("Time stepping"). Returns the final ``u⁺`` and the table
-        terms of the final active set.
+        See the module docstring ("Time stepping"). Returns the final ``u⁺``.
         """
         m_dt, i_dt = self._m_dt, self._i_dt
         pad1, pad2 = self.pads
         c1, c2 = self._pad_world(phi)
-        q1, ds1, _, cx1, cy1, ra1, ms1 = c1
-        q2, ds2, _, cx2, cy2, ra2, ms2 = c2
+        q1, ds1, cx1, cy1, ra1, ms1 = c1
+        q2, ds2, cx2, cy2, ra2, ms2 = c2
         # Spring wrenches −σ0 f_n z of both pads, rotated to world axes (gripper centre).
         sx, sy, st = pad1.spring(f_n)
         w1 = (q1[0] * sx + q1[3] * sy + q1[6] * st, q1[1] * sx + q1[4] * sy + q1[7] * st,
@@ -918,8 +916,7 @@ class Plant:
         slide = [self.sliding[0] and pad1.f_n > 0.0 and pad1.nu != (0.0, 0.0, 0.0),
                  self.sliding[1] and pad2.f_n > 0.0 and pad2.nu != (0.0, 0.0, 0.0)]
         if diag is not None and not corners and not (slide[0] or slide[1]):
-            out = self._solve_pads_diagonal(f_n, diag, q1, q2, w1, w2, cx1, cy1, ra1, ms1,
-                                            cx2, cy2, ra2, ms2, dx, dy, vxg, vyg, wg, r0, r1, r2)
+            out = self._solve_pads_diagonal(f_n, diag, w1, w2, dx, dy, vxg, vyg, wg, r0, r1, r2)
             if out is not None:
                 return out
         springs = (w1, w2)
@@ -995,7 +992,8 @@ class Plant:
             if not changed:
                 break
         self.sliding = slide
-        return self._step_models(f_n, q1, q2, n0, n1, n2, dx, dy, r0, r1, r2, hc, rc, corners)
+        return self._step_models(f_n, n0, n1, n2, dx, dy, r0, r1, r2,
+                                 (hc, rc) if corners else None)
 
     @staticmethod
     def _sliding_terms(pad: PadContact, q: tuple[float, ...], f_n: float,
@@ -1079,12 +1077,10 @@ class Plant:
         return a0 * b0 + a1 * b1 + a2 * b2 <= 0.0 or a0 * a0 + a1 * a1 + a2 * a2 < slow * slow
 
     def _solve_pads_diagonal(self, f_n: float, diag: tuple[float, float, float],
-                             q1: tuple[float, ...], q2: tuple[float, ...],
                              w1: tuple[float, float, float], w2: tuple[float, float, float],
-                             cx1: float, cy1: float, ra1: float, ms1: float, cx2: float,
-                             cy2: float, ra2: float, ms2: float, dx: float, dy: float,
-                             vxg: float, vyg: float, wg: float, r0: float, r1: float, r2: float,
-                             ) -> Optional[tuple[float, float, float, list[float], list[float]]]:
+                             dx: float, dy: float, vxg: float, vyg: float, wg: float,
+                             r0: float, r1: float, r2: float,
+                             ) -> Optional[tuple[float, float, float]]:
         """Fast path: no table contact, both pads stick, ``D_w = f_n diag(a, a, b)``.
 
         Returns ``None`` when a pad would exceed its static limit (the general path then
@@ -1108,56 +1104,46 @@ class Plant:
         ux = (g0 - h02 * uw) * inv
         uy = (g1 - h12 * uw) * inv
         n0, n1, n2 = ux - dy * uw - vxg, uy + dx * uw - vyg, uw - wg
-        for w, d, cx, cy, ra, ms in ((w1, self._qcache[0][1], cx1, cy1, ra1, ms1),
-                                     (w2, self._qcache[1][1], cx2, cy2, ra2, ms2)):
+        c1, c2 = self._qcache
+        for w, (_, d, cx, cy, ra, ms) in ((w1, c1), (w2, c2)):
             fx = w[0] - f_n * d[0] * n0
             fy = w[1] - f_n * d[4] * n1
             tq = w[2] - f_n * d[8] * n2 - (cx * fy - cy * fx)
             if fx * fx + fy * fy + (tq / ra) ** 2 > (ms * f_n) ** 2:
                 return None
         self.sliding = [False, False]
-        return self._step_models(f_n, q1, q2, n0, n1, n2, dx, dy, r0, r1, r2, [0.0] * 9,
-                                 [0.0, 0.0, 0.0], ())
+        return self._step_models(f_n, n0, n1, n2, dx, dy, r0, r1, r2, None)
 
-    def _step_models(self, f_n: float, q1: tuple[float, ...], q2: tuple[float, ...],
-                     n0: float, n1: float, n2: float, dx: float, dy: float, r0: float,
-                     r1: float, r2: float, hc: list[float], rc: list[float],
-                     corners: tuple[list[float], ...]
-                     ) -> tuple[float, float, float, list[float], list[float]]:
-        """Step both friction models with the relative twist ``ν_w`` and return ``u⁺``."""
+    def _step_models(self, f_n: float, n0: float, n1: float, n2: float, dx: float, dy: float,
+                     r0: float, r1: float, r2: float,
+                     table: Optional[tuple[list[float], list[float]]]
+                     ) -> tuple[float, float, float]:
+        """Step both friction models with the relative twist ``ν_w`` (world axes) and return
+        ``u⁺``; ``table`` holds the implicit table terms ``(H, r)`` of the final active set
+        (None without table contact)."""
         dt = self.dt
-        m_dt, i_dt = self._m_dt, self._i_dt
-        pad1, pad2 = self.pads
         # Library models with the implicit relative twist; their wrenches back to world axes.
-        v0 = q1[0] * n0 + q1[1] * n1 + q1[2] * n2
-        v1 = q1[3] * n0 + q1[4] * n1 + q1[5] * n2
-        v2 = q1[6] * n0 + q1[7] * n1 + q1[8] * n2
-        wx, wy, wt = pad1.model.step((v0, v1, v2), dt, f_n)[:3]
-        pad1.w = (wx, wy, wt)
-        pad1.nu = (v0, v1, v2)
-        pad1.f_n = f_n
-        f0 = q1[0] * wx + q1[3] * wy + q1[6] * wt
-        f1 = q1[1] * wx + q1[4] * wy + q1[7] * wt
-        f2 = q1[2] * wx + q1[5] * wy + q1[8] * wt
-        v0 = q2[0] * n0 + q2[1] * n1 + q2[2] * n2
-        v1 = q2[3] * n0 + q2[4] * n1 + q2[5] * n2
-        v2 = q2[6] * n0 + q2[7] * n1 + q2[8] * n2
-        wx, wy, wt = pad2.model.step((v0, v1, v2), dt, f_n)[:3]
-        pad2.w = (wx, wy, wt)
-        pad2.nu = (v0, v1, v2)
-        pad2.f_n = f_n
-        f0 += q2[0] * wx + q2[3] * wy + q2[6] * wt
-        f1 += q2[1] * wx + q2[4] * wy + q2[7] * wt
-        f2 += q2[2] * wx + q2[5] * wy + q2[8] * wt
+        f0 = f1 = f2 = 0.0
+        for pad, pw in zip(self.pads, self._qcache):
+            q0, q1, q2, q3, q4, q5, q6, q7, q8 = pw.q
+            v0 = q0 * n0 + q1 * n1 + q2 * n2
+            v1 = q3 * n0 + q4 * n1 + q5 * n2
+            v2 = q6 * n0 + q7 * n1 + q8 * n2
+            wx, wy, wt, _ = pad.model.advance(v0, v1, v2, dt, f_n)
+            pad.w = (wx, wy, wt)
+            pad.nu = (v0, v1, v2)
+            pad.f_n = f_n
+            f0 += q0 * wx + q3 * wy + q6 * wt
+            f1 += q1 * wx + q4 * wy + q7 * wt
+            f2 += q2 * wx + q5 * wy + q8 * wt
         # Final velocity with the models' wrenches (table terms stay implicit).
-        g0, g1, g2 = r0 + rc[0] + f0, r1 + rc[1] + f1, r2 + rc[2] + f2 - dy * f0 + dx * f1
-        if corners:
-            h = [m_dt + hc[0], hc[1], hc[2], hc[3], m_dt + hc[4], hc[5], hc[6], hc[7],
-                 i_dt + hc[8]]
-            ux, uy, uw = _solve3(h, g0, g1, g2)
-        else:
-            ux, uy, uw = g0 / m_dt, g1 / m_dt, g2 / i_dt
-        return ux, uy, uw, hc, rc
+        m_dt, i_dt = self._m_dt, self._i_dt
+        if table is None:
+            return (r0 + f0) / m_dt, (r1 + f1) / m_dt, (r2 + f2 - dy * f0 + dx * f1) / i_dt
+        hc, rc = table
+        h = [m_dt + hc[0], hc[1], hc[2], hc[3], m_dt + hc[4], hc[5], hc[6], hc[7],
+             i_dt + hc[8]]
+        return _solve3(h, r0 + rc[0] + f0, r1 + rc[1] + f1, r2 + rc[2] + f2 - dy * f0 + dx * f1)
 
     def _set_gripper(self, xg: float, yg: float, phi: float, vxg: float, vyg: float,
                      wg: float) -> None:
@@ -1266,21 +1252,21 @@ class Plant:
         kn, dn = tp.stiffness, tp.stiffness * self.dt + tp.damping
         kt = tp.tangential_stiffness
         mu = self.preset.table_mu
-        touching = set()
-        for cr in corners:
-            i, ex, ey, pen, active, sgn = cr
+        touching = [False] * 4
+        corner_n, corner_s = self.corner_n, self.corner_s
+        for i, ex, ey, pen, active, sgn in corners:
             ii = int(i)
             if not active:
                 continue
             n = max(0.0, kn * pen - dn * (uy + uw * ex))
-            self.corner_n[ii] = n
-            touching.add(ii)
+            corner_n[ii] = n
+            touching[ii] = True
             if sgn == 0.0:
-                self.corner_s[ii] += self.dt * (ux - uw * ey)
+                corner_s[ii] += self.dt * (ux - uw * ey)
             else:
-                self.corner_s[ii] = -sgn * mu * n / kt
+                corner_s[ii] = -sgn * mu * n / kt
         for ii in range(4):
-            if ii not in touching:
-                self.corner_n[ii] = 0.0
-                self.corner_s[ii] = 0.0
-        self.on_table = bool(touching)
+            if not touching[ii]:
+                corner_n[ii] = 0.0
+                corner_s[ii] = 0.0
+        self.on_table = any(touching)

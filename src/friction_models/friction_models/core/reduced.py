@@ -162,6 +162,8 @@ class ReducedPlanarLuGre:
         self._dmu = p.mu_s - p.mu_c
         self._inv_vs = 1.0 / p.v_s
         self._inv_band = 1.0 / (1.0 - p.r_ba)
+        self._sigma0, self._sigma1, self._sigma2 = p.sigma0, p.sigma1, p.sigma2
+        self._exponential = self._integrator == 'exponential'
 
     # ------------------------------------------------------------------ properties
     @property
@@ -203,6 +205,12 @@ class ReducedPlanarLuGre:
     def state(self) -> NDArray[np.float64]:
         """Bristle state ``(z_x, z_y, z_τ)`` [m] (copy; ``z_τ`` carries a factor r_a)."""
         return np.array(self._z)
+
+    @property
+    def state_tuple(self) -> tuple[float, float, float]:
+        """Bristle state ``(z_x, z_y, z_τ)`` [m] as plain floats (no array; per-step use)."""
+        z0, z1, z2 = self._z
+        return z0, z1, z2
 
     def set_state(self, z: ArrayLike) -> None:
         """Set the bristle state (3,) [m]."""
@@ -255,12 +263,12 @@ class ReducedPlanarLuGre:
         e = x * x if p.stribeck_exp == 2.0 else x ** p.stribeck_exp
         return p.mu_c + self._dmu * math.exp(-e)
 
-    def _beta(self, h: tuple[float, float, float], g: float, z: Sequence[float]) -> float:
+    def _beta(self, hx: float, hy: float, ht: float, g: float, z0: float, z1: float,
+              z2: float) -> float:
         """Elasto-Plastic weight β = ε·α on the rescaled vectors (spec §5, §6.3 item 7)."""
         p = self._params
-        hx, hy, ht = h
-        y2 = z[2] / self._r_a
-        yn = math.sqrt(z[0] * z[0] + z[1] * z[1] + y2 * y2)
+        y2 = z2 / self._r_a
+        yn = math.sqrt(z0 * z0 + z1 * z1 + y2 * y2)
         hn = math.sqrt(hx * hx + hy * hy + ht * ht)
         y_max = hn * g / p.sigma0
         if yn <= p.r_ba * y_max:
@@ -274,7 +282,7 @@ class ReducedPlanarLuGre:
             s = math.sin(0.5 * math.pi * u)
             alpha = s * s
         # Drive direction in rescaled space is −h; ε = (1 + (−ĥ)·ŷ)/2.
-        eps = 0.5 * (1.0 - (hx * z[0] + hy * z[1] + ht * y2) / (hn * yn))
+        eps = 0.5 * (1.0 - (hx * z0 + hy * z1 + ht * y2) / (hn * yn))
         return alpha * eps
 
     # ------------------------------------------------------------------ public API
@@ -306,30 +314,67 @@ class ReducedPlanarLuGre:
             self.set_normal_force(f_n)
         if not dt > 0.0:
             raise ValueError(f'dt must be > 0 s, got {dt!r}')
-        p = self._params
         vx, vy, om = self._cop_twist(twist, frame)
+        return Wrench._make(self._advance_cop(vx, vy, om, dt))
+
+    def advance(self, vx: float, vy: float, om: float, dt: float,
+                f_n: float) -> tuple[float, float, float, float]:
+        """`step` without argument checks, for a rigid-body coupling that steps every dt.
+
+        Same numbers as ``step((vx, vy, om), dt, f_n)`` with ``frame='pad'``; the caller
+        guarantees plain floats, ``dt > 0`` and a finite ``f_n ≥ 0``.
+
+        Args:
+            vx, vy, om: Twist of the object relative to the pad at the pad centre
+                [m/s, m/s, rad/s].
+            dt: Time step [s].
+            f_n: Normal force [N] for this and later steps.
+
+        Returns:
+            The `Wrench` fields ``(fx, fy, τ_pad, τ_cop)`` [N, N, N·m, N·m] as a plain tuple.
+        """
+        self._f_n = f_n
+        return self._advance_cop(vx - om * self._cy, vy + om * self._cx, om, dt)
+
+    def _advance_cop(self, vx: float, vy: float, om: float,
+                     dt: float) -> tuple[float, float, float, float]:
+        """The step kernel for a CoP twist (module docstring); returns the `Wrench` fields."""
         r_a = self._r_a
         z0, z1, z2 = self._z
         vn = math.sqrt(vx * vx + vy * vy + r_a * r_a * om * om)
         if vn > 0.0:
-            h = self._direction(vx, vy, om, vn)
+            flat = self._flat
+            if flat:
+                hx, hy, ht = lookup_scalar(flat, self._n, vx, vy, om, r_a)
+            else:
+                hx, hy, ht = self._direction(vx, vy, om, vn)
             g = self._stribeck(vn)
-            k = p.sigma0 * vn / g
+            k = self._sigma0 * vn / g
             if self._ep:
-                k *= self._beta(h, g, self._z)
-            q0, q1, q2 = -h[0] * vn, -h[1] * vn, -r_a * h[2] * vn
-            d0, d1, d2 = q0 - k * z0, q1 - k * z1, q2 - k * z2
-            if self._integrator == 'exponential':
+                k *= self._beta(hx, hy, ht, g, z0, z1, z2)
+            # ż = q − k z with q = w v_n, w = −S h.
+            d0 = -hx * vn - k * z0
+            d1 = -hy * vn - k * z1
+            d2 = -r_a * ht * vn - k * z2
+            if self._exponential:
                 x = k * dt
-                ph = -math.expm1(-x) / x if x > _TINY else 1.0
-                d0 *= ph
-                d1 *= ph
-                d2 *= ph
+                if x > _TINY:      # φ(x) = −expm1(−x)/x; φ(0) = 1 (sticking: no scaling)
+                    ph = -math.expm1(-x) / x
+                    d0 *= ph
+                    d1 *= ph
+                    d2 *= ph
                 n0, n1, n2 = z0 + dt * d0, z1 + dt * d1, z2 + dt * d2
                 if self._ep:
-                    n0, n1, n2, d0, d1, d2 = self._project(h, g, n0, n1, n2, d0, d1, d2, dt)
+                    # Elasto-Plastic bound ‖S⁻¹z⁺‖ ≤ max(‖S⁻¹z‖, z_max) (module docstring).
+                    y_new = math.sqrt(n0 * n0 + n1 * n1 + (n2 / r_a) ** 2)
+                    bound = max(math.sqrt(z0 * z0 + z1 * z1 + (z2 / r_a) ** 2),
+                                math.sqrt(hx ** 2 + hy ** 2 + ht ** 2) * g / self._sigma0)
+                    if y_new > bound:
+                        f = bound / y_new
+                        n0, n1, n2 = n0 * f, n1 * f, n2 * f
+                        d0, d1, d2 = (n0 - z0) / dt, (n1 - z1) / dt, (n2 - z2) / dt
             else:
-                d0, d1, d2 = self._euler_rate(h, g, k, d0, d1, d2, dt)
+                d0, d1, d2 = self._euler_rate((hx, hy, ht), g, k, d0, d1, d2, dt)
                 n0, n1, n2 = z0 + dt * d0, z1 + dt * d1, z2 + dt * d2
             self._z = [n0, n1, n2]
             if self._post:
@@ -337,27 +382,11 @@ class ReducedPlanarLuGre:
         else:
             d0 = d1 = d2 = 0.0
         fn = self._f_n
-        sig0, sig1, sig2 = p.sigma0, p.sigma1, p.sigma2
+        sig0, sig1, sig2 = self._sigma0, self._sigma1, self._sigma2
         fx = -(sig0 * z0 + sig1 * d0 + sig2 * vx) * fn
         fy = -(sig0 * z1 + sig1 * d1 + sig2 * vy) * fn
         tc = -(sig0 * z2 + sig1 * d2 + sig2 * self._j * om) * fn
-        return Wrench(fx, fy, tc + self._cx * fy - self._cy * fx, tc)
-
-    def _project(self, h: tuple[float, float, float], g: float, n0: float, n1: float,
-                 n2: float, d0: float, d1: float, d2: float, dt: float,
-                 ) -> tuple[float, float, float, float, float, float]:
-        """Elasto-Plastic bound ``‖S⁻¹z⁺‖ ≤ max(‖S⁻¹z‖, z_max)`` (see module docstring)."""
-        r_a = self._r_a
-        z0, z1, z2 = self._z
-        y_new = math.sqrt(n0 * n0 + n1 * n1 + (n2 / r_a) ** 2)
-        y_old = math.sqrt(z0 * z0 + z1 * z1 + (z2 / r_a) ** 2)
-        bound = max(y_old, math.sqrt(h[0] ** 2 + h[1] ** 2 + h[2] ** 2) * g
-                    / self._params.sigma0)
-        if y_new <= bound:
-            return n0, n1, n2, d0, d1, d2
-        f = bound / y_new
-        n0, n1, n2 = n0 * f, n1 * f, n2 * f
-        return n0, n1, n2, (n0 - z0) / dt, (n1 - z1) / dt, (n2 - z2) / dt
+        return (fx, fy, tc + self._cx * fy - self._cy * fx, tc)
 
     def _euler_rate(self, h: tuple[float, float, float], g: float, k: float, d0: float,
                     d1: float, d2: float, dt: float) -> tuple[float, float, float]:
@@ -397,7 +426,7 @@ class ReducedPlanarLuGre:
         g = self._stribeck(vn)
         k = self._params.sigma0 * vn / g
         if self._ep:
-            k *= self._beta(h, g, (float(za[0]), float(za[1]), float(za[2])))
+            k *= self._beta(*h, g, float(za[0]), float(za[1]), float(za[2]))
         w = np.array([-h[0], -h[1], -self._r_a * h[2]])
         return w * vn - k * za
 

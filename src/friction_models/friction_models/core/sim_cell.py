@@ -10,9 +10,10 @@
 * the host side of the real gripper driver that matters to the physics, using the driver's
   own cores, not copies: on every telemetry line the opening-rate observer
   (:class:`~slip_gripper_driver.core.observer.RateObserver`), the inner grasp-force loop
-  (:class:`~slip_gripper_driver.core.force_control.GraspForceController`) and the command
-  encoding (:func:`~slip_gripper_driver.core.protocol.encode_force_command`: ceiling, ±20 V
-  clip, 0.01 V rounding); homing either instant or the real sequence
+  (:class:`~slip_gripper_driver.core.force_control.GraspForceController`) and the voltage of
+  the command encoding (:func:`~slip_gripper_driver.core.protocol.encode_force_command`:
+  ceiling, ±20 V clip, 0.01 V rounding; evaluated without building and re-parsing the bytes,
+  see `encoded_voltage`); homing either instant or the real sequence
   (:class:`~slip_gripper_driver.core.homing.Homing`); host-side F/T bias.
 
 Time: ``t = n·physics_dt`` (n integer steps since construction, never reset). Sensors fire on
@@ -40,7 +41,7 @@ from slip_gripper_driver.core.frames import FrameParams
 from slip_gripper_driver.core.homing import Homing, HomingParams, homing_refusal
 from slip_gripper_driver.core.observer import ObserverParams, RateObserver
 from slip_gripper_driver.core.param_schema import ParameterError, check_value, specs
-from slip_gripper_driver.core.protocol import CommandError, encode_force_command
+from slip_gripper_driver.core.protocol import force_to_voltage
 
 from .limit_surface import LimitSurfaceCache
 from .plant import FrictionSettings, Plant, SimActuatorParams, TableParams
@@ -55,6 +56,7 @@ __all__ = [
     'SimParams',
     'SimState',
     'SimStatus',
+    'encoded_voltage',
 ]
 
 _NAN = math.nan
@@ -244,6 +246,23 @@ def _finite(*values: float) -> bool:
     return all(isinstance(v, (int, float)) and math.isfinite(v) for v in values)
 
 
+def encoded_voltage(force_n: float, newton_per_volt: float, max_close_force_n: float,
+                    max_open_force_n: float, voltage_limit_v: float) -> float:
+    """The voltage [V] `encode_force_command` sends for a force command [N], without the bytes.
+
+    Same order (HW-3): force ceiling ``[−max_open, max_close]``, ``V = −F/k_FV``, ±limit clip,
+    0.01 V rounding, ``−0.00`` sent as 0. ``round(v, 2)`` and the ``.2f`` format both round
+    the exact binary value correctly (half-even), so this equals parsing the command back;
+    a test checks it against the driver's encoder. Non-finite forces give 0 V (the driver
+    refuses to send them).
+    """
+    if not math.isfinite(force_n):
+        return 0.0
+    clipped = min(max(force_n, -max_open_force_n), max_close_force_n)
+    v = force_to_voltage(clipped, newton_per_volt)
+    return round(min(max(v, -voltage_limit_v), voltage_limit_v), 2) + 0.0   # −0.0 → 0.0
+
+
 class SimCell:
     """The simulated cell; see the module docstring.
 
@@ -291,6 +310,10 @@ class SimCell:
                                     self._plant.pads[0].p_mid_to_pad, vel_rng),
                      VelocitySensor(2, params.velocity_sensor,
                                     self._plant.pads[1].p_mid_to_pad, vel_rng))
+        fc = params.force_control
+        # encoded_voltage constants: k_FV, force ceiling (close, open), voltage clip.
+        self._encoding = (a.newton_per_volt, fc.max_command_force, fc.max_open_force,
+                          a.voltage_limit)
         self._period_tel = 1.0 / params.rates.telemetry
         self._period_ft = 1.0 / params.rates.ft
         self._period_vel = 1.0 / params.velocity_sensor.rate
@@ -420,21 +443,25 @@ class SimCell:
         self._next_ft = (self._k_ft + 1) * self._period_ft
         plant = self._plant
         bias = self._bias
+        sample = self._ft.sample
+        in_contact = plant.in_contact
+        fz, stamps, out = self._fz, self._ft_stamp, ev.ft
         for k, pad in enumerate(plant.pads):
-            f = pad.f_n if plant.in_contact else plant.actuator.f_stop
-            raw = self._ft.sample(k + 1, pad.w, f, (pad.cx, pad.cy))
+            f = pad.f_n if in_contact else plant.actuator.f_stop
+            raw = sample(k + 1, pad.w, f, pad.cop)
             if bias.collecting:
                 bias.add(k + 1, t, raw)
             b = bias.bias[k]
             if b is not None:
-                biased = (raw[0] - b[0], raw[1] - b[1], raw[2] - b[2], raw[3] - b[3],
-                          raw[4] - b[4], raw[5] - b[5])
-                self._fz[k] = biased[2]
+                r0, r1, r2, r3, r4, r5 = raw
+                b0, b1, b2, b3, b4, b5 = b
+                biased = (r0 - b0, r1 - b1, r2 - b2, r3 - b3, r4 - b4, r5 - b5)
+                fz[k] = r2 - b2
             else:
                 biased = None
-                self._fz[k] = raw[2]
-            self._ft_stamp[k] = t
-            ev.ft.append(FtSample(t, k + 1, raw, biased))
+                fz[k] = raw[2]
+            stamps[k] = t
+            out.append(FtSample(t, k + 1, raw, biased))
 
     def _vel_tick(self, k: int, t: float, ev: SimEvents) -> None:
         self._k_vel[k] += 1
@@ -444,11 +471,11 @@ class SimCell:
     def _tel_tick(self, t: float, ev: SimEvents) -> None:
         self._k_tel += 1
         self._next_tel = (self._k_tel + 1) * self._period_tel
-        a = self._params.actuator
         angle = self._encoder.read(self._plant.motor_angle(self._theta_closed))
         self._angle = angle
         self._rate = self._observer.update(t, angle * self._k_open).rate
         if self._homing.active:
+            a = self._params.actuator
             step = self._homing.step(t, angle)
             voltage = step.voltage_v if step.voltage_v is not None else 0.0
             if step.finished and self._homing.result is not None:
@@ -467,21 +494,12 @@ class SimCell:
             rate, stroke = self._rate, self._stroke_est
         else:
             opening = rate = stroke = _NAN
+        fz, ft_stamp = self._fz, self._ft_stamp
         out = self._controller.step(ForceLoopInput(
-            t, self._target, self._target_stamp, self._target_timeout, self._fz[0],
-            self._fz[1], self._ft_stamp[0], self._ft_stamp[1], biased, homed, opening, rate,
-            stroke, self._stopped))
+            t, self._target, self._target_stamp, self._target_timeout, fz[0], fz[1],
+            ft_stamp[0], ft_stamp[1], biased, homed, opening, rate, stroke, self._stopped))
         self._last_out = out
-        voltage = 0.0
-        if not self._stopped:
-            fc = self._params.force_control
-            try:
-                _, voltage = encode_force_command(
-                    out.force_cmd, newton_per_volt=a.newton_per_volt,
-                    max_close_force_n=fc.max_command_force, max_open_force_n=fc.max_open_force,
-                    voltage_limit_v=a.voltage_limit)
-            except CommandError:   # cannot happen with a finite command; stay safe
-                voltage = 0.0
+        voltage = 0.0 if self._stopped else encoded_voltage(out.force_cmd, *self._encoding)
         self._set_voltage(voltage)
         ev.telemetry.append(TelemetrySample(
             t, angle, out.force_target, out.force_cmd, voltage, out.measured_force, out.error,
