@@ -443,8 +443,8 @@ def test_command_voltage_equals_the_drivers_encoding() -> None:
 
 @pytest.mark.parametrize('noise', [0.0, 0.8])
 def test_chip_counts_follow_the_count_quantizer(noise: float) -> None:
-    # The sensor evaluates the chips' counter model with floats; the package's array
-    # implementation is the reference (carried remainders, saturation, count noise).
+    # The sensor feeds b·A·(x, y, θ) of each chip axis to the package's counter model
+    # (carried remainders, saturation, count noise): same counts as its array interface.
     params = VelocitySensorParams(count_noise_std=noise, poll_period=0.004)
     sensor = VelocitySensor(1, params, (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0),
                             np.random.default_rng(3))

@@ -16,9 +16,7 @@ Conventions of hardware_protocols §5.2, stamps are sim time of acquisition [s]:
   with the sensor package's own models: per-chip displacements through the rigid-body model
   matrix (:func:`~slip_velocity_sensor.core.fusion.model_matrix`, 3 chips at 240/120/0°,
   d = 24.3 mm), chips reading low by their gain ``b`` (raw = b·true), 3200-CPI counts with
-  carried remainders (the counter model of
-  :class:`~slip_velocity_sensor.core.chip_model.CountQuantizer`, evaluated with plain floats
-  per read -- the array version costs ~10 µs a call; a test keeps both equal), the device
+  carried remainders (:class:`~slip_velocity_sensor.core.chip_model.CountQuantizer`), the device
   correction ``v = v_raw / b`` and least-squares fusion with outlier rejection
   (:class:`~slip_velocity_sensor.core.fusion.RigidBodyFusion`). One count per period is
   ≈ 0.95 mm/s raw, ≈ 0.013 rad/s in ω.
@@ -33,7 +31,7 @@ from typing import Iterator, Optional, Union
 
 import numpy as np
 
-from slip_velocity_sensor.core.chip_model import ChipModelParams
+from slip_velocity_sensor.core.chip_model import ChipModelParams, CountQuantizer
 from slip_velocity_sensor.core.fusion import FusionParams, RigidBodyFusion
 
 __all__ = [
@@ -354,11 +352,7 @@ class VelocitySensor:
         chip = ChipModelParams(max_counts=127 * polls, count_noise_std=params.count_noise_std,
                                poll_period=params.poll_period)
         self._m_per_count = chip.metres_per_count
-        self._per_metre = 1.0 / chip.metres_per_count
-        self._max_counts = chip.max_counts
-        self._noise_std = chip.count_noise_std
-        self._rng = rng
-        self._carry = [0.0] * 6
+        self._quantizer = CountQuantizer(6, chip, rng if params.count_noise_std > 0 else None)
         self._last = (0.0, 0.0, 0.0)
         self._last_t = math.nan
 
@@ -366,7 +360,7 @@ class VelocitySensor:
         """Restart at ``t`` [s] with a zero slip integral (scene reset)."""
         self._last = (0.0, 0.0, 0.0)
         self._last_t = t
-        self._carry = [0.0] * 6
+        self._quantizer.reset()
 
     def sample(self, t: float, slip_integral: list[float]) -> VelocitySample:
         """The sample at ``t`` [s] from the plant's ``∫ν dt`` in ``gripper_middle`` axes."""
@@ -392,20 +386,10 @@ class VelocitySensor:
         return VelocitySample(t, self.finger, fused.vx, fused.vy, fused.omega, True)
 
     def _read_counts(self, x: float, y: float, th: float) -> list[int]:
-        """Counts of the six chip axes for a pad-frame displacement ``(x, y, θ)`` [m, m, rad].
-
-        `CountQuantizer.read` of the raw displacements ``b·A·(x, y, θ)``: sub-count motion
-        is carried to the next read, counts beyond ±``max_counts`` are lost.
-        """
-        steps = [c + b * (a0 * x + a1 * y + a2 * th) * self._per_metre
-                 for c, (a0, a1, a2, b) in zip(self._carry, self._axes)]
-        if self._noise_std > 0.0:
-            noise = self._rng.normal(0.0, self._noise_std, 6).tolist()
-            steps = [s + e for s, e in zip(steps, noise)]
-        limit = self._max_counts
-        counts = [math.trunc(s) for s in steps]
-        self._carry = [s - c for s, c in zip(steps, counts)]
-        return [min(max(c, -limit), limit) for c in counts]
+        """Counts of the six chip axes for a pad-frame displacement ``(x, y, θ)`` [m, m, rad]:
+        the raw chip displacements ``b·A·(x, y, θ)`` through the sensor package's counter."""
+        return self._quantizer.read_counts(
+            [b * (a0 * x + a1 * y + a2 * th) for a0, a1, a2, b in self._axes])
 
 
 class MotorEncoder:

@@ -13,6 +13,7 @@ calibration recordings.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -57,33 +58,44 @@ class CountQuantizer:
             raise ValueError('count noise needs a seeded rng')
         self.params = params
         self._rng = rng
+        self._n = n_axes
         self._scale = 1.0 / params.metres_per_count
-        self._carry = np.zeros(n_axes)
+        self._carry = [0.0] * n_axes
         self.saturated_reads = 0
 
     def reset(self) -> None:
         """Forget carried sub-count motion (a chip reset)."""
-        self._carry[:] = 0.0
+        self._carry = [0.0] * self._n
 
-    def read(self, displacement: ArrayLike) -> NDArray[np.int64]:
-        """Counts reported for the displacement since the previous read.
+    def read_counts(self, displacement: Sequence[float]) -> list[int]:
+        """Counts reported for the displacement since the previous read (plain floats).
+
+        The model in scalar form: a handful of axes per read is several times cheaper than
+        through numpy (the simulator reads six axes per finger at 120 Hz).
 
         Args:
-            displacement: True displacement of each axis since the last read [m], shape (n,).
+            displacement: True displacement of each axis since the last read [m], length n.
 
         Returns:
-            Counts per axis, clipped to ±max_counts, shape (n,).
+            Counts per axis, clipped to ±max_counts.
         """
-        steps = self._carry + np.asarray(displacement, dtype=np.float64) * self._scale
-        if self._rng is not None and self.params.count_noise_std > 0.0:
-            steps = steps + self._rng.normal(0.0, self.params.count_noise_std, steps.shape)
-        counts = np.trunc(steps)
-        self._carry = steps - counts
+        scale = self._scale
+        steps = [c + d * scale for c, d in zip(self._carry, displacement, strict=True)]
+        std = self.params.count_noise_std
+        if self._rng is not None and std > 0.0:
+            steps = [s + e for s, e in zip(steps, self._rng.normal(0.0, std, self._n).tolist())]
+        counts = [math.trunc(s) for s in steps]
+        self._carry = [s - c for s, c in zip(steps, counts)]
         limit = self.params.max_counts
-        clipped = np.clip(counts, -limit, limit)
-        if np.any(clipped != counts):
+        clipped = [min(max(c, -limit), limit) for c in counts]
+        if clipped != counts:
             self.saturated_reads += 1
-        return clipped.astype(np.int64)
+        return clipped
+
+    def read(self, displacement: ArrayLike) -> NDArray[np.int64]:
+        """`read_counts` for an array: counts per axis, clipped to ±max_counts, shape (n,)."""
+        values = np.asarray(displacement, dtype=np.float64).tolist()
+        return np.asarray(self.read_counts(values), dtype=np.int64)
 
 
 def quantize_series(displacement: ArrayLike, params: ChipModelParams,
