@@ -54,12 +54,15 @@ class FtChannel:
         sink: Receives every accepted sample (bias-removed or None).
         restart_initial_s: First stream-restart delay [s].
         restart_max_s: Largest stream-restart delay [s].
+        thread_setup: Called first on the client's reader thread (`realtime.ThreadTuning`).
     """
 
     def __init__(self, finger: int, address: str, ft: FtParams, bias: BiasParams, *,
                  clock: Clock, sink: Sink | None = None, restart_initial_s: float = 0.5,
-                 restart_max_s: float = 5.0) -> None:
+                 restart_max_s: float = 5.0,
+                 thread_setup: Callable[[], object] | None = None) -> None:
         self.finger = finger
+        self._thread_setup = thread_setup
         self.address = address
         self.port = ft.port
         self._clock = clock
@@ -96,7 +99,8 @@ class FtChannel:
         self.client = NetFTClient(
             self.address, scale=scale, clock=self._clock, on_sample=self._on_sample,
             port=ft.port, start_retries=ft.start_retries, start_wait_s=ft.start_wait,
-            restart_initial_s=self._restart[0], restart_max_s=self._restart[1])
+            restart_initial_s=self._restart[0], restart_max_s=self._restart[1],
+            thread_setup=self._thread_setup)
         try:
             self.client.open()
             self.client.start()

@@ -8,13 +8,17 @@ Net F/T boxes (``ft.mode: embedded``) feed the loop from their own reader thread
 ``ft.mode: topic`` the loop consumes ``finger_k/ft/wrench`` from standalone ``netft_driver``s.
 
 Lifecycle: configure opens the port (FAILURE naming it) and starts both RDT streams (FAILURE
-naming the box); activate arms and starts the reader and the link watchdog (a 5 ms timer on
-the steady clock); deactivate, cleanup and shutdown write the safe voltage **first**. Link
-faults, reconnections and firmware restarts disarm: no force is applied until ``gripper/arm``.
+naming the box); activate arms and starts the reader and the link watchdog (a thread of the
+core checking every 5 ms, independent of the executor); deactivate, cleanup and shutdown write
+the safe voltage **first**. Link faults, reconnections and firmware restarts disarm: no force
+is applied until ``gripper/arm``.
+
+Latency (``realtime.*``): the reader threads run ``SCHED_FIFO`` when permitted (a warning
+otherwise) and the objects alive after configure are frozen out of the GC; see
+`core.realtime`. Publishing happens after the command write, on the reader thread.
 
 Spin with a multi-threaded executor (``main`` does): ``gripper/home`` and ``gripper/bias_ft``
-answer when the procedure has finished and run in their own callback group, so the watchdog
-keeps running meanwhile.
+answer when the procedure has finished and run in their own callback group.
 """
 from __future__ import annotations
 
@@ -39,18 +43,20 @@ from slip_gripper_driver.common.node_main import run_node
 from slip_gripper_driver.common.params import ParameterBinding
 from slip_gripper_driver.common.qos import COMMAND, LATCHED, SENSOR_PUB, SENSOR_SUB, overridable
 from slip_gripper_driver.core.bridge import (BridgeDiagnostics, GripperDriverCore, LineResult,
-                                             LinkState)
+                                             LinkState, WatchdogResult)
 from slip_gripper_driver.core.force_control import BypassReason
 from slip_gripper_driver.core.frames import FrameParams, finger_transforms, static_transforms
 from slip_gripper_driver.core.monitors import Level, Report
 from slip_gripper_driver.core.netft import NetFTError
 from slip_gripper_driver.core.param_schema import ParameterError
+from slip_gripper_driver.core.realtime import ThreadTuning, freeze_gc
 from slip_gripper_driver.core.transport import ByteStream, LinkError, open_stream
 from slip_gripper_driver.ft_channel import (FT_SUPERVISE_PERIOD_S, FtChannel, TopicFtInput,
                                             run_bias, wrench_publisher)
 from slip_gripper_driver.node_params import GripperDriverParams
 
-#: Link watchdog period on the steady clock [s] (≤ 10 ms: stale detection ≤ 20 + 5 ms).
+#: Link watchdog period [s] (≤ 10 ms: stale detection ≤ 20 + 5 ms). It runs on a thread of
+#: the core (`GripperDriverCore.start_watchdog`), not as an executor timer.
 WATCHDOG_PERIOD_S = 0.005
 #: While the link is not OK, status is published from the watchdog every n-th tick.
 DEGRADED_STATUS_EVERY = 4
@@ -104,6 +110,7 @@ class GripperDriverNode(LifecycleNode):
         self.topic_inputs: list[TopicFtInput] = []
         self.last_error = ''
         self._cfg = GripperDriverParams()
+        self._tuning = ThreadTuning()
         self._frames = FrameParams()
         self._publishing = False
         self._lines = 0
@@ -113,12 +120,10 @@ class GripperDriverNode(LifecycleNode):
         self._homing_finished = threading.Event()
         self._entities: list[Any] = []
         self._timers: list[Any] = []
-        self._watchdog: Any = None
         self._diag: TaskDiagnostics | None = None
         self._pubs: dict[str, Any] = {}
         self._bias_clients: list[Any] = []
         self._long_group = MutuallyExclusiveCallbackGroup()
-        self._watchdog_group = MutuallyExclusiveCallbackGroup()
         self._client_group = ReentrantCallbackGroup()
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
         self._jump = self.get_clock().create_jump_callback(
@@ -139,6 +144,26 @@ class GripperDriverNode(LifecycleNode):
     def _active(self) -> bool:
         return self.core is not None and self._publishing
 
+    def tune_spin_thread(self) -> str:
+        """Apply ``realtime.*`` scheduling to the calling thread (the thread that spins).
+
+        The reader threads alone are not enough in a Python process: a normal-priority
+        executor thread holding the GIL can be preempted by any other process, and the
+        ``SCHED_FIFO`` reader then waits for the GIL (priority inversion; seen as 1–4 ms
+        latency outliers through the node). ``main`` calls this on the spinning thread before
+        the executor starts its worker threads, which inherit the policy. Fails soft.
+
+        Returns:
+            The outcome, e.g. ``'SCHED_FIFO 10'`` (also logged when it failed).
+        """
+        realtime = self.params.load().realtime
+        tuning = ThreadTuning.from_params(realtime)
+        tuning.apply()
+        for problem in tuning.take_failures():
+            self.get_logger().warning(f'realtime: {problem}; executor threads run with normal '
+                                      'scheduling')
+        return next(iter(tuning.results.values()), 'normal')
+
     # ------------------------------------------------------------------ lifecycle
     def on_configure(self, state: LifecycleState) -> TransitionCallbackReturn:
         """Validate parameters, open the port, start both RDT streams, create endpoints."""
@@ -150,10 +175,13 @@ class GripperDriverNode(LifecycleNode):
         except ParameterError as exc:
             return self._fail(f'invalid parameters: {exc}')
         self._cfg = cfg
+        # realtime.*: the serial and Net F/T reader threads tune themselves when they start.
+        self._tuning = tuning = ThreadTuning.from_params(cfg.realtime)
         core = GripperDriverCore(cfg.serial.port, cfg.bridge(), clock=self.now,
                                  baudrate=cfg.serial.baudrate, reconnect=cfg.reconnect,
                                  on_result=self._on_result, on_event=self._on_event,
-                                 opener=_opener(cfg.link.fault_after))
+                                 opener=_opener(cfg.link.fault_after),
+                                 thread_setup=tuning.apply)
         try:
             core.configure()
         except LinkError as exc:
@@ -165,13 +193,17 @@ class GripperDriverNode(LifecycleNode):
                 channel = FtChannel(finger, address, cfg.ft, cfg.bias, clock=self.now,
                                     sink=self._ft_sink,
                                     restart_initial_s=cfg.reconnect.initial_delay,
-                                    restart_max_s=cfg.reconnect.max_delay)
+                                    restart_max_s=cfg.reconnect.max_delay,
+                                    thread_setup=tuning.apply)
                 try:
                     channel.open()
                 except NetFTError as exc:
                     return self._fail(f'finger {finger} Net F/T: {exc}')
                 self.channels.append(channel)
         self._create_endpoints(cfg)
+        if cfg.realtime.freeze_gc:
+            # Everything configure keeps is alive now: later collections never scan it.
+            freeze_gc()
         self.get_logger().info(
             f'configured: {cfg.serial.port}, F/T {cfg.ft.mode}'
             + (''.join(f', finger {c.finger} at {c.name}' for c in self.channels)))
@@ -197,9 +229,7 @@ class GripperDriverNode(LifecycleNode):
         self._pubs['static_frames'].publish(
             ros_conv.transforms_msg(t, static_transforms(self._frames)))
         self._last_state = LinkState.INACTIVE
-        self._watchdog = self.create_timer(WATCHDOG_PERIOD_S, self._on_watchdog,
-                                           callback_group=self._watchdog_group,
-                                           clock=self._steady)
+        self.core.start_watchdog(WATCHDOG_PERIOD_S, self._on_watchdog)
         if self._cfg.bias.on_activate:
             self._start_background_bias(t)
         self.get_logger().info(f'active: armed on {self.core.port}')
@@ -217,9 +247,6 @@ class GripperDriverNode(LifecycleNode):
         self._publishing = False
         for channel in self.channels:
             channel.publishing = False
-        if self._watchdog is not None:
-            self.destroy_timer(self._watchdog)
-            self._watchdog = None
         return super().on_deactivate(state)
 
     def on_cleanup(self, state: LifecycleState) -> TransitionCallbackReturn:
@@ -286,10 +313,12 @@ class GripperDriverNode(LifecycleNode):
                 source = TopicFtInput(k, topic, cfg.ft.expected_rate / cfg.ft.publish_decimation,
                                       cfg.ft.rate_tolerance, self._ft_sink)
                 self.topic_inputs.append(source)
+                # One group per finger: F/T delivery (1 kHz in all) never waits behind
+                # timers, services or the other finger in the node's default group.
                 entities.append(self.create_subscription(
                     WrenchStamped, topic,
                     lambda msg, s=source: s.on_wrench(*ros_conv.wrench_from_msg(msg)),
-                    SENSOR_SUB))
+                    SENSOR_SUB, callback_group=MutuallyExclusiveCallbackGroup()))
                 client = self.create_client(Trigger, f'finger_{k}/ft/bias',
                                             callback_group=self._client_group)
                 self._bias_clients.append(client)
@@ -321,9 +350,6 @@ class GripperDriverNode(LifecycleNode):
         self._diag = diag
 
     def _destroy_endpoints(self) -> None:
-        if self._watchdog is not None:
-            self.destroy_timer(self._watchdog)
-            self._watchdog = None
         for timer in self._timers:
             self.destroy_timer(timer)
         self._timers = []
@@ -390,13 +416,12 @@ class GripperDriverNode(LifecycleNode):
         else:  # 'error': failed reopen attempts, repeated with back-off
             log.warning(message, throttle_duration_sec=1.0)
 
-    # ------------------------------------------------------------------ executor callbacks
-    def _on_watchdog(self) -> None:
+    # ------------------------------------------------------------------ watchdog thread
+    def _on_watchdog(self, t: float, result: WatchdogResult) -> None:
+        """After each link check (core watchdog thread, every `WATCHDOG_PERIOD_S`)."""
         core = self.core
         if core is None:
             return
-        t = self.now()
-        result = core.watchdog(t)
         self._ticks += 1
         changed = result.state != self._last_state
         self._last_state = result.state
@@ -406,7 +431,10 @@ class GripperDriverNode(LifecycleNode):
             # No lines arrive, so the reader publishes nothing: report link_ok = false here.
             pub.publish(ros_conv.status_msg(core.bridge.status(t)))
 
+    # ------------------------------------------------------------------ executor callbacks
     def _on_ft_supervise(self) -> None:
+        for problem in self._tuning.take_failures():  # logged once per thread, soft failure
+            self.get_logger().warning(f'realtime: {problem}; running with normal scheduling')
         t = self.now()
         for channel in self.channels:
             channel.supervise(t, self._cfg.force_control.ft_fault_after)
@@ -547,7 +575,9 @@ class GripperDriverNode(LifecycleNode):
             ('link_losses', str(d.link_losses)), ('stale_events', str(d.stale_events)),
             ('connect_failures', str(s.connect_failures)),
             ('write_failures', str(d.write_failures)), ('armed', str(d.armed).lower()),
-            ('safe_reason', d.safe_reason), ('last_error', s.last_error))
+            ('safe_reason', d.safe_reason), ('last_error', s.last_error),
+            ('scheduling', '; '.join(f'{k}: {v}' for k, v in
+                                     sorted(self._tuning.results.items())) or 'not started'))
         if d.link_state in (LinkState.DOWN, LinkState.FAULT, LinkState.STALE):
             return Report(Level.ERROR, f'{core.port}: link {d.link_state.name.lower()}'
                           + (f' ({s.last_error})' if s.last_error else ''), values)
@@ -630,10 +660,17 @@ def _opener(write_timeout_s: float) -> Callable[..., ByteStream]:
     return opener
 
 
+def _tuned_node() -> GripperDriverNode:
+    """The node, with the main (spinning) thread tuned per ``realtime.*``."""
+    node = GripperDriverNode()
+    node.tune_spin_thread()
+    return node
+
+
 def main(args: list[str] | None = None) -> int:
     """Console entry point ``gripper_driver``."""
     sys.setswitchinterval(SWITCH_INTERVAL_S)
-    return run_node(GripperDriverNode, args, multithreaded=True)
+    return run_node(_tuned_node, args, multithreaded=True)
 
 
 if __name__ == '__main__':

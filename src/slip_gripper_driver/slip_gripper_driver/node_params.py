@@ -18,6 +18,7 @@ from slip_gripper_driver.core.netft import (RDT_PORT, BiasParams, FtParams, forc
 from slip_gripper_driver.core.observer import ObserverParams
 from slip_gripper_driver.core.param_schema import ParameterError
 from slip_gripper_driver.core.protocol import ActuatorParams
+from slip_gripper_driver.core.realtime import RealtimeParams
 from slip_gripper_driver.core.transport import ReconnectParams, SerialParams
 from slip_gripper_driver.core.validation import validate_fields
 
@@ -65,6 +66,7 @@ class GripperDriverParams:
     ft: FtParams = field(default_factory=FtParams)
     bias: BiasParams = field(default_factory=BiasParams)
     joint_states: JointStatesParams = field(default_factory=JointStatesParams)
+    realtime: RealtimeParams = field(default_factory=RealtimeParams)
 
     def bridge(self) -> BridgeParams:
         """The bridge core's parameter set."""
@@ -81,7 +83,7 @@ class GripperDriverParams:
             problems.append(str(exc))
         problems += _collect({'serial': self.serial, 'reconnect': self.reconnect,
                               'ft': self.ft, 'bias': self.bias,
-                              'joint_states': self.joint_states})
+                              'joint_states': self.joint_states, 'realtime': self.realtime})
         if problems:
             raise ParameterError('; '.join(problems))
 

@@ -10,6 +10,7 @@ services. Every wait is bounded; assertions are on physical outcomes with tolera
 from __future__ import annotations
 
 import math
+import sys
 import threading
 import time
 from dataclasses import dataclass
@@ -500,12 +501,24 @@ def test_home_service_then_joint_states_and_finger_frames(empty_cell: Cell,
         opening / 2.0 + 0.0078, abs=0.002)
 
 
-@pytest.mark.xfail(strict=False, reason=(
-    'known gap: with two netft_driver nodes, the gripper driver and two UDP emulators in one '
-    'process on 2 cores, the topic input received < 200 wrenches in 10 s in the integration '
-    'run (passed in isolation for its author); the bias path through the drivers passes'))
+@pytest.fixture
+def driver_switch_interval() -> Iterator[None]:
+    """The GIL switch interval ``main`` sets for the driver process, restored afterwards.
+
+    This test crowds three driver nodes, the firmware and two box emulators into one process.
+    At Python's default 5 ms interval a thread that wants the GIL waits up to 5 ms per switch
+    among ~10 busy threads: the box emulators then sent < 250 of 500 records per second and
+    the bias windows came up short (the known gap this test used to be marked with).
+    """
+    from slip_gripper_driver.gripper_driver_node import SWITCH_INTERVAL_S
+    previous = sys.getswitchinterval()
+    sys.setswitchinterval(SWITCH_INTERVAL_S)
+    yield
+    sys.setswitchinterval(previous)
+
+
 def test_topic_mode_consumes_standalone_netft_drivers_and_biases_through_them(
-        cell: Cell, ros_context) -> None:
+        cell: Cell, ros_context, driver_switch_interval: None) -> None:
     """ft.mode 'topic': two netft_driver nodes own the boxes; gripper/bias_ft calls theirs."""
     from rclpy.executors import MultiThreadedExecutor, SingleThreadedExecutor
     from rclpy.lifecycle import TransitionCallbackReturn
@@ -543,7 +556,9 @@ def test_topic_mode_consumes_standalone_netft_drivers_and_biases_through_them(
     probe_exec = SingleThreadedExecutor(context=ros_context)
     probe_exec.add_node(probe)
     try:
-        for node in (*drivers, gripper):
+        # The gripper first: its configure freezes the GC after a full collection, a one-off
+        # pause that must not fall between the drivers' streams starting and the bias call.
+        for node in (gripper, *drivers):
             assert node.trigger_configure() == TransitionCallbackReturn.SUCCESS, node.last_error
             assert node.trigger_activate() == TransitionCallbackReturn.SUCCESS
         assert not gripper.channels  # no UDP client of its own: one owner per box
@@ -553,15 +568,20 @@ def test_topic_mode_consumes_standalone_netft_drivers_and_biases_through_them(
         assert 'finger_1/ft/bias' in reply.message and 'finger_2/ft/bias' in reply.message
         assert spin_until(probe_exec, lambda: gripper.core.bridge.status(gripper.now()).ft_biased
                           and gripper.core.bridge.status(gripper.now()).ft_fresh, TIMEOUT_S)
-        assert spin_until(probe_exec, lambda: gripper.topic_inputs[1].count > 200, TIMEOUT_S)
+        # Wrenches keep flowing through the topic into the loop (a count, not a rate: the
+        # rate depends on how crowded this single test process is).
+        before = gripper.topic_inputs[1].count
+        assert spin_until(probe_exec, lambda: gripper.topic_inputs[1].count >= before + 50,
+                          TIMEOUT_S)
+        assert gripper.topic_inputs[0].count > 0
         report = gripper.topic_inputs[1].report(gripper.now(), 0.2)
         assert report.level != 2, report  # fresh (the rate depends on this crowded process)
     finally:
         from slip_gripper_driver.common.node_main import shutdown_lifecycle
+        stop.set()  # no wait set may hold entities that the shutdown destroys
+        thread.join(2.0)
         for node in (gripper, *drivers):
             shutdown_lifecycle(node)
-        stop.set()
-        thread.join(2.0)
         executor.shutdown()
         probe_exec.shutdown()
         for node in (gripper, *drivers, probe):

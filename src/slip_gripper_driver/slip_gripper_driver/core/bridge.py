@@ -70,6 +70,17 @@ _NAN = math.nan
 Writer = Callable[[bytes], bool]
 
 
+class _FtSlot(NamedTuple):
+    """Latest F/T sample of one finger, handed over as one immutable object."""
+
+    fz: float  #: bias-removed Fz [N]; NaN if invalid
+    stamp: float  #: acquisition stamp [s]; NaN before the first sample
+    biased: bool
+
+
+_NO_FT = _FtSlot(_NAN, _NAN, False)
+
+
 @dataclass(frozen=True)
 class LinkParams:
     """Telemetry supervision (parameter group ``link``)."""
@@ -317,10 +328,8 @@ class GripperBridge:
         self._target_stamp = 0.0
         self._target_timeout = 0.0
         self._target_source = 0
-        # F/T (index 0 = finger 1)
-        self._fz = [_NAN, _NAN]
-        self._ft_stamp = [_NAN, _NAN]
-        self._ft_biased = [False, False]
+        # F/T (index 0 = finger 1): latest-sample slots, replaced whole without the lock
+        self._ft = [_NO_FT, _NO_FT]
         self._ft_samples = [0, 0]
         # counters
         self._firmware_restarts = 0
@@ -426,7 +435,9 @@ class GripperBridge:
             self._last_line_t = _NAN
             self._connect_t = self._activate_t = t
             self._target_stamp = min(self._target_stamp, t)
-            self._ft_stamp = [min(s, t) if math.isfinite(s) else s for s in self._ft_stamp]
+            for i, slot in enumerate(self._ft):
+                if math.isfinite(slot.stamp):
+                    self._ft[i] = slot._replace(stamp=min(slot.stamp, t))
 
     # ------------------------------------------------------------------ link events
     def on_connected(self, t: float, port: str = '') -> None:
@@ -463,6 +474,13 @@ class GripperBridge:
         Writes the safe voltage once when the link goes stale; disarms and asks for a
         reconnection once when it faults.
         """
+        # The usual case (fresh telemetry) without the lock: the watchdog runs on an executor
+        # thread every few ms, and a lock holder descheduled there would delay the reader.
+        # Attribute reads are atomic; a NaN age (no line yet) takes the locked path.
+        if self._connected and self._active:
+            age = t - self._last_line_t
+            if age <= self._params.link.stale_after:
+                return WatchdogResult(LinkState.OK, age, False, 'ok')
         with self._lock:
             if not self._connected:
                 return WatchdogResult(LinkState.DOWN, math.inf, False, 'port closed')
@@ -532,6 +550,12 @@ class GripperBridge:
     def on_ft_sample(self, finger: int, t: float, fz: float, biased: bool) -> None:
         """Store the latest bias-removed normal force of one finger.
 
+        Lock-free: the sample replaces the finger's slot in one reference assignment (atomic
+        under the GIL) and the 500 Hz step reads each slot once, so an F/T reader thread
+        never waits for a control step nor makes one wait (it used to take the bridge lock
+        at 1 kHz per box; a reader holding it while descheduled delayed the command write).
+        One thread per finger calls this (its box's reader or the topic callback).
+
         Args:
             finger: 1 or 2.
             t: Acquisition stamp [s] (node clock when the datagram arrived).
@@ -541,11 +565,8 @@ class GripperBridge:
         if finger not in (1, 2):
             raise ValueError(f'finger must be 1 or 2, got {finger!r}')
         i = finger - 1
-        with self._lock:
-            self._fz[i] = fz
-            self._ft_stamp[i] = t
-            self._ft_biased[i] = biased
-            self._ft_samples[i] += 1
+        self._ft[i] = _FtSlot(fz, t, biased)
+        self._ft_samples[i] += 1
 
     def start_homing(self, t: float) -> CommandResult:
         """Start homing at ``t`` [s] unless a precondition fails (see `homing_refusal`)."""
@@ -601,7 +622,8 @@ class GripperBridge:
                 self._homing.message = f'automatic homing refused: {refusal}'
 
         event = ''
-        motor: MotorCommandRecord | None = None
+        out: ForceLoopOutput | None = None
+        ft = (self._ft[0], self._ft[1])  # one consistent pair for this step
         if self._homing.active:
             step = self._homing.step(t, angle)
             if step.voltage_v is not None and self._armed:
@@ -613,7 +635,7 @@ class GripperBridge:
                 event = 'homing_done' if self._homing.homed else 'homing_failed'
             self._force_cmd = voltage_to_force(voltage, a.newton_per_volt)
         else:
-            out = self._controller.step(self._loop_input(t))
+            out = self._controller.step(self._loop_input(t, ft))
             self._last_out = out
             command, voltage = self._safe_command, a.safe_voltage
             if not self._safe():
@@ -626,12 +648,13 @@ class GripperBridge:
                 except CommandError as exc:  # cannot happen with finite inputs; stay safe
                     self._enter_safe(f'command encoding failed: {exc}')
             self._force_cmd = out.force_cmd
-            motor = MotorCommandRecord(t, out.force_target, out.force_cmd, voltage,
-                                       out.measured_force, out.error, out.integral,
-                                       out.gain_scale, out.closed_loop, int(out.bypass_reason))
         self._voltage_cmd = voltage
         written = self._write(command)
-        return LineResult(t, LineKind.TELEMETRY, command, written, self._snapshot(t), motor,
+        # Everything below only reports: it runs after the command left.
+        motor = None if out is None else MotorCommandRecord(
+            t, out.force_target, out.force_cmd, voltage, out.measured_force, out.error,
+            out.integral, out.gain_scale, out.closed_loop, int(out.bypass_reason))
+        return LineResult(t, LineKind.TELEMETRY, command, written, self._snapshot(t, ft), motor,
                           event)
 
     # ------------------------------------------------------------------ outputs
@@ -645,6 +668,7 @@ class GripperBridge:
         with self._lock:
             c = self._parser.counters()
             out = self._last_out
+            ft = (self._ft[0], self._ft[1])
             if not self._connected:
                 state = LinkState.DOWN
             elif not self._active:
@@ -676,8 +700,8 @@ class GripperBridge:
                 saturations=self._controller.saturations,
                 skipped_integrations=self._controller.skipped_integrations,
                 ft_samples=(self._ft_samples[0], self._ft_samples[1]),
-                ft_age_s=(t - self._ft_stamp[0], t - self._ft_stamp[1]),
-                ft_biased=(self._ft_biased[0], self._ft_biased[1]))
+                ft_age_s=(t - ft[0].stamp, t - ft[1].stamp),
+                ft_biased=(ft[0].biased, ft[1].biased))
 
     @property
     def homing(self) -> Homing:
@@ -746,12 +770,14 @@ class GripperBridge:
         return self._connected and self._session_lines > 0 and \
             self._line_age(t) <= self._params.link.stale_after
 
-    def _ft_state(self, t: float) -> tuple[float, bool, bool]:
+    def _ft_state(self, t: float, ft: tuple[_FtSlot, _FtSlot] | None = None
+                  ) -> tuple[float, bool, bool]:
         """``(grasp force F_m = −(Fz1+Fz2)/2 or NaN, both biased, both fresh)``."""
+        ft1, ft2 = ft if ft is not None else (self._ft[0], self._ft[1])
         stale = self._params.force_control.ft_stale_after
-        biased = self._ft_biased[0] and self._ft_biased[1]
-        fresh = all(t - s <= stale for s in self._ft_stamp)
-        force = -0.5 * (self._fz[0] + self._fz[1]) if biased and fresh else _NAN
+        biased = ft1.biased and ft2.biased
+        fresh = t - ft1.stamp <= stale and t - ft2.stamp <= stale
+        force = -0.5 * (ft1.fz + ft2.fz) if biased and fresh else _NAN
         return force, biased, fresh
 
     def _homing_refusal(self, t: float) -> str | None:
@@ -762,16 +788,17 @@ class GripperBridge:
             grasp_force=force, contact_threshold=self._params.force_control.contact_threshold,
             target_force=0.0 if self._stopped else self._target)
 
-    def _loop_input(self, t: float) -> ForceLoopInput:
+    def _loop_input(self, t: float, ft: tuple[_FtSlot, _FtSlot]) -> ForceLoopInput:
         result = self._homing.result
         k = self._params.actuator.opening_per_rad
         measurement = self._params.force_control.measurement
+        ft1, ft2 = ft
         if measurement == 'finger_1':
-            biased = self._ft_biased[0]
+            biased = ft1.biased
         elif measurement == 'finger_2':
-            biased = self._ft_biased[1]
+            biased = ft2.biased
         else:
-            biased = self._ft_biased[0] and self._ft_biased[1]
+            biased = ft1.biased and ft2.biased
         if result is not None:
             opening = (self._angle - result.theta_closed) * k
             stroke = result.stroke
@@ -779,17 +806,18 @@ class GripperBridge:
             opening = stroke = _NAN
         return ForceLoopInput(
             t=t, target=self._target, target_stamp=self._target_stamp,
-            target_timeout=self._target_timeout, fz_1=self._fz[0], fz_2=self._fz[1],
-            ft_stamp_1=self._ft_stamp[0], ft_stamp_2=self._ft_stamp[1], ft_biased=biased,
+            target_timeout=self._target_timeout, fz_1=ft1.fz, fz_2=ft2.fz,
+            ft_stamp_1=ft1.stamp, ft_stamp_2=ft2.stamp, ft_biased=biased,
             homed=result is not None, opening=opening,
             opening_rate=self._rate if result is not None else _NAN, stroke=stroke,
             safe_state=self._safe())
 
-    def _snapshot(self, t: float) -> GripperStatusSnapshot:
+    def _snapshot(self, t: float, ft: tuple[_FtSlot, _FtSlot] | None = None
+                  ) -> GripperStatusSnapshot:
         c = self._parser.counters()
         result = self._homing.result
         k = self._params.actuator.opening_per_rad
-        force, biased, fresh = self._ft_state(t)
+        force, biased, fresh = self._ft_state(t, ft)
         out = self._last_out
         homed = result is not None
         return GripperStatusSnapshot(
@@ -808,14 +836,21 @@ class GripperBridge:
 
 LineResultCallback = Callable[[LineResult], None]
 EventCallback = Callable[[float, str, str], None]
+#: ``(t, result)`` after each watchdog check, on the watchdog thread.
+WatchdogCallback = Callable[[float, WatchdogResult], None]
 
 
 class GripperDriverCore:
     """A `GripperBridge` wired to a `SerialLink`: what the lifecycle node wraps.
 
     Lifecycle mapping: configure → `configure` (opens the port; `LinkError` names it);
-    activate → `activate`; a ≥ 100 Hz timer → `watchdog`; deactivate → `deactivate` (safe
-    voltage first); cleanup → `cleanup`; shutdown / process exit → `shutdown`.
+    activate → `activate` then `start_watchdog` (or a ≥ 100 Hz timer calling `watchdog`);
+    deactivate → `deactivate` (safe voltage first); cleanup → `cleanup`; shutdown / process
+    exit → `shutdown`.
+
+    `start_watchdog` supervises the link from a thread of its own rather than an executor
+    timer: it does not depend on (or add load to) the executor, so a starved or busy executor
+    can neither delay link-loss detection nor, through the GIL, the 500 Hz reader.
 
     Args:
         port: Port path or pyserial URL.
@@ -830,6 +865,7 @@ class GripperDriverCore:
             ``'homing_failed'``, ``'stale'``, ``'fault'``.
         opener: Stream factory (tests inject fakes).
         read_timeout_s: Serial read timeout [s].
+        thread_setup: Called first on the serial reader thread (`realtime.ThreadTuning.apply`).
     """
 
     def __init__(self, port: str, params: BridgeParams, *, clock: Clock,
@@ -837,16 +873,21 @@ class GripperDriverCore:
                  on_result: LineResultCallback | None = None,
                  on_event: EventCallback | None = None,
                  opener: Callable[..., ByteStream] = open_stream,
-                 read_timeout_s: float = 0.02) -> None:
+                 read_timeout_s: float = 0.02,
+                 thread_setup: Callable[[], object] | None = None) -> None:
         self._clock = clock
         self._on_result = on_result
         self._on_event = on_event
+        self._thread_setup = thread_setup
         self._last_state = LinkState.INACTIVE
+        self._watchdog_stop = threading.Event()
+        self._watchdog_thread: threading.Thread | None = None
+        self.watchdog_errors = 0  #: exceptions raised in a watchdog tick (a bug; reported)
         self.link = SerialLink(port, clock=clock, on_line=self._handle_line,
                                on_connected=self._handle_connected, on_lost=self._handle_lost,
                                on_error=self._handle_error, baudrate=baudrate,
                                read_timeout_s=read_timeout_s, reconnect=reconnect,
-                               opener=opener)
+                               opener=opener, thread_setup=thread_setup)
         self.bridge = GripperBridge(params, writer=self.link.write)
 
     @property
@@ -887,15 +928,40 @@ class GripperDriverCore:
             self.link.request_reconnect(result.reason)
         return result
 
+    def start_watchdog(self, period_s: float, on_tick: WatchdogCallback | None = None) -> None:
+        """Call `watchdog` every ``period_s`` [s] on a thread of its own until deactivation.
+
+        The period is waited on the monotonic clock; each check uses ``clock()`` (the node
+        clock), like a steady-clock timer would. ``on_tick(t, result)`` runs after each check
+        on that thread (publish a degraded status there; must not block).
+        """
+        if self._watchdog_thread is not None and self._watchdog_thread.is_alive():
+            return
+        self._watchdog_stop.clear()
+        self._watchdog_thread = threading.Thread(
+            target=self._watchdog_loop, args=(period_s, on_tick),
+            name=f'link-watchdog {self.port}', daemon=True)
+        self._watchdog_thread.start()
+
+    def stop_watchdog(self, timeout_s: float = 1.0) -> None:
+        """Stop the watchdog thread (idempotent)."""
+        self._watchdog_stop.set()
+        thread = self._watchdog_thread
+        if thread is not None and thread is not threading.current_thread():
+            thread.join(timeout_s)
+        self._watchdog_thread = None
+
     def deactivate(self, t: float) -> bool:
-        """Write the safe voltage, then stop the reader thread; True if it was written."""
+        """Write the safe voltage, then stop the reader and watchdog; True if written."""
         written = self.bridge.deactivate(t)
         self.link.stop()
+        self.stop_watchdog()
         return written
 
     def cleanup(self, t: float) -> None:
         """Safe voltage (if still possible), stop and close the port."""
         self.bridge.deactivate(t)
+        self.stop_watchdog()
         self.link.close()
 
     def shutdown(self, t: float) -> None:
@@ -907,6 +973,24 @@ class GripperDriverCore:
         return self.link.stats()
 
     # ------------------------------------------------------------------ callbacks
+    def _watchdog_loop(self, period_s: float, on_tick: WatchdogCallback | None) -> None:
+        if self._thread_setup is not None:
+            try:
+                self._thread_setup()
+            except Exception as exc:  # noqa: BLE001 - tuning is optional
+                self._emit(self._clock(), 'error', f'{self.port}: watchdog thread setup: {exc}')
+        stop = self._watchdog_stop
+        while not stop.wait(period_s):
+            t = self._clock()
+            try:
+                result = self.watchdog(t)
+                if on_tick is not None:
+                    on_tick(t, result)
+            except Exception as exc:  # noqa: BLE001 - supervision must keep running
+                self.watchdog_errors += 1
+                self._emit(t, 'error', f'{self.port}: watchdog tick raised '
+                           f'{type(exc).__name__}: {exc}')
+
     def _emit(self, t: float, kind: str, message: str) -> None:
         if self._on_event is not None:
             self._on_event(t, kind, message)

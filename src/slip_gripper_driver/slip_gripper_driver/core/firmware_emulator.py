@@ -497,12 +497,22 @@ def _build_parser() -> argparse.ArgumentParser:
     parser.add_argument('--stats-json', action='store_true',
                         help='print counters as one JSON line at exit')
     parser.add_argument('--seed', type=int, default=0, help='random seed')
+    parser.add_argument('--priority', type=int, default=0,
+                        help='SCHED_FIFO priority of the emulator threads (1-99), so that, like '
+                             'real firmware, its 500 Hz timing does not depend on the host load; '
+                             '0 = normal scheduling; falls back with a warning when not permitted')
     return parser
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Console entry point; prints the port path, runs until Ctrl-C or ``--duration``."""
     args = _build_parser().parse_args(argv)
+    if args.priority > 0:
+        from slip_gripper_driver.core.realtime import set_fifo_priority
+        problem = set_fifo_priority(args.priority)  # inherited by every thread started below
+        if problem:
+            print(f'warning: {problem}; emulator runs with normal scheduling', file=sys.stderr,
+                  flush=True)
     model = GripperModelParams(stroke=args.stroke, initial_opening=args.initial_opening,
                                object_width=args.object_width,
                                object_stiffness=args.object_stiffness)

@@ -597,14 +597,18 @@ class NetFTClient:
         resync_after: See `SequenceTracker`.
         restart_initial_s: First delay between start requests re-sent by `supervise` [s].
         restart_max_s: Largest such delay [s] (exponential back-off in between).
+        thread_setup: Called first on the reader thread (scheduling priority, see
+            `realtime.ThreadTuning.apply`); an exception there is recorded in ``last_error``.
     """
 
     def __init__(self, address: str, *, scale: ForceTorqueScale, clock: Clock,
                  on_sample: SampleCallback | None = None, port: int = RDT_PORT,
                  buffered: bool = False, start_retries: int = 10, start_wait_s: float = 0.1,
                  bind_address: str = '', resync_after: int = 16, restart_initial_s: float = 0.5,
-                 restart_max_s: float = 5.0) -> None:
+                 restart_max_s: float = 5.0,
+                 thread_setup: Callable[[], object] | None = None) -> None:
         self.address = address
+        self._thread_setup = thread_setup
         self.port = port
         self.scale = scale
         self._clock = clock
@@ -781,6 +785,12 @@ class NetFTClient:
     def _run(self) -> None:
         sock, wake = self._sock, self._wake_r
         assert sock is not None and wake is not None
+        if self._thread_setup is not None:
+            try:
+                self._thread_setup()
+            except Exception as exc:  # noqa: BLE001 - tuning is optional; keep receiving
+                with self._lock:
+                    self._last_error = f'{self.name}: thread setup failed: {exc}'
         while self._running:
             try:
                 ready, _, _ = select.select([sock, wake], [], [], 1.0)

@@ -14,13 +14,21 @@ every stamp handed to callers comes from the injected clock.
 """
 from __future__ import annotations
 
+import errno
+import os
 import re
+import select
 import threading
 import time
 from dataclasses import dataclass, field
-from typing import Callable, Protocol, runtime_checkable
+from typing import Callable, NamedTuple, Protocol, runtime_checkable
 
 import serial
+
+try:  # POSIX ports get a direct descriptor path for the 500 Hz loop (see SerialLink)
+    from serial.serialposix import Serial as _PosixSerial
+except ImportError:  # pragma: no cover - non-POSIX platforms use pyserial's read/write only
+    _PosixSerial = None
 
 from slip_gripper_driver.core.validation import validate_fields
 
@@ -31,6 +39,16 @@ _TERMINATOR_RE = re.compile(rb'[\r\n]')
 
 #: Largest chunk read at once [bytes]; far above a 500 Hz line rate, bounds each read.
 _MAX_CHUNK = 4096
+
+#: errno values of a non-blocking descriptor that has nothing to give or take right now.
+_RETRY_ERRNOS = frozenset({errno.EAGAIN, errno.EWOULDBLOCK, errno.EINTR})
+
+
+class _DirectIO(NamedTuple):
+    """Descriptors of an open POSIX pyserial port (read/write without pyserial's wrappers)."""
+
+    fd: int
+    abort_r: int
 
 
 @runtime_checkable
@@ -300,6 +318,15 @@ class SerialLink:
       port. Reconnection attempts follow with back-off.
     * ``on_error(t, message)``: a reopen attempt failed or a callback raised.
 
+    Latency (the 500 Hz loop writes its command from ``on_line``): on a POSIX port opened by
+    pyserial the reader waits with one ``select`` on the port and pyserial's abort pipe, reads
+    with one ``os.read`` and `write` is one ``os.write`` on the non-blocking descriptor. That
+    is what pyserial does underneath, without its per-call ``in_waiting`` ioctl, timeout
+    bookkeeping and the extra ``select`` after every write (each also a GIL release another
+    thread can take over). A write the descriptor cannot take at once (``EAGAIN``, partial)
+    goes through pyserial's ``write`` with its timeout, as before; every other stream (URLs,
+    fakes) always uses ``read``/``write``.
+
     Args:
         url: Port path or pyserial URL.
         clock: Stamp source [s] (the node clock).
@@ -314,6 +341,8 @@ class SerialLink:
         reconnect: Back-off parameters.
         opener: ``open_stream``-compatible factory (tests inject fakes here).
         wait_clock: Monotonic clock used only to time back-off waits.
+        thread_setup: Called first on the reader thread (scheduling priority, see
+            `realtime.ThreadTuning.apply`); its exceptions are counted like a callback's.
     """
 
     def __init__(self, url: str, *, clock: Clock, on_line: LineCallback,
@@ -322,8 +351,11 @@ class SerialLink:
                  read_timeout_s: float = 0.02, write_timeout_s: float = 0.05,
                  max_line_length: int = 128, reconnect: ReconnectParams = ReconnectParams(),
                  opener: Callable[..., ByteStream] = open_stream,
-                 wait_clock: Clock = time.monotonic) -> None:
+                 wait_clock: Clock = time.monotonic,
+                 thread_setup: Callable[[], object] | None = None) -> None:
         self.url = url
+        self._thread_setup = thread_setup
+        self._direct: _DirectIO | None = None
         self._clock = clock
         self._on_line = on_line
         self._on_connected = on_connected
@@ -431,7 +463,15 @@ class SerialLink:
                 self._writes_dropped += 1
                 return False
             try:
-                stream.write(data)
+                direct = self._direct
+                if direct is not None:
+                    done = self._write_direct(direct.fd, data)
+                    if done == len(data):
+                        self._bytes_written += done
+                        return True
+                    stream.write(data[done:])  # the rest waits (with timeout) in pyserial
+                else:
+                    stream.write(data)
             except (serial.SerialException, OSError) as exc:
                 self._write_errors += 1
                 reason = describe_link_error(self.url, exc)
@@ -453,9 +493,54 @@ class SerialLink:
         self._cancel_read()
 
     # ------------------------------------------------------------------ internals
+    @staticmethod
+    def _write_direct(fd: int, data: bytes) -> int:
+        """Bytes of ``data`` the non-blocking descriptor took at once (0 when it is full)."""
+        try:
+            return os.write(fd, data)
+        except OSError as exc:
+            if exc.errno in _RETRY_ERRNOS:
+                return 0
+            raise serial.SerialException(f'write failed: {exc}') from exc
+
+    @staticmethod
+    def _direct_io(stream: ByteStream) -> _DirectIO | None:
+        if _PosixSerial is None or not isinstance(stream, _PosixSerial):
+            return None
+        fd = getattr(stream, 'fd', None)
+        abort_r = getattr(stream, 'pipe_abort_read_r', None)
+        if not isinstance(fd, int) or not isinstance(abort_r, int) or fd < 0 or abort_r < 0:
+            return None
+        return _DirectIO(fd, abort_r)
+
+    def _read(self, stream: ByteStream) -> bytes:
+        """Up to `_MAX_CHUNK` bytes, or b'' after the read timeout or a cancel."""
+        direct = self._direct
+        if direct is None:
+            waiting = getattr(stream, 'in_waiting', 0) or 0
+            return stream.read(min(max(1, int(waiting)), _MAX_CHUNK))
+        ready, _, _ = select.select(direct, (), (), self._read_timeout_s)
+        if not ready:
+            return b''
+        if direct.abort_r in ready:  # cancel_read(): drain the abort pipe like pyserial
+            os.read(direct.abort_r, 1000)
+            return b''
+        try:
+            chunk = os.read(direct.fd, _MAX_CHUNK)
+        except OSError as exc:
+            if exc.errno in _RETRY_ERRNOS:
+                return b''
+            raise serial.SerialException(f'read failed: {exc}') from exc
+        if not chunk:
+            raise serial.SerialException(
+                'device reports readiness to read but returned no data '
+                '(device disconnected or multiple access on port?)')
+        return chunk
+
     def _install(self, stream: ByteStream) -> None:
         with self._write_lock:
             self._stream = stream
+            self._direct = self._direct_io(stream)
         self._ever_connected = True
         self._drop_reason = None
         self._policy.record_success()
@@ -484,6 +569,7 @@ class SerialLink:
     def _close_stream(self) -> None:
         with self._write_lock:
             stream, self._stream = self._stream, None
+            self._direct = None
         if stream is not None:
             try:
                 stream.close()
@@ -512,6 +598,8 @@ class SerialLink:
             self._call(self._on_lost, self._clock(), reason)
 
     def _run(self) -> None:
+        if self._thread_setup is not None:
+            self._call(self._thread_setup)
         while not self._stop.is_set():
             stream = self._stream
             if stream is None:
@@ -522,8 +610,7 @@ class SerialLink:
                 self._lose(reason)
                 continue
             try:
-                waiting = getattr(stream, 'in_waiting', 0) or 0
-                chunk = stream.read(min(max(1, int(waiting)), _MAX_CHUNK))
+                chunk = self._read(stream)
             except (serial.SerialException, OSError, TypeError, ValueError) as exc:
                 # TypeError/ValueError: pyserial on a descriptor that vanished under it.
                 if self._stop.is_set():
