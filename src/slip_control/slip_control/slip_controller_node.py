@@ -10,8 +10,11 @@ Thin rclpy node around `slip_control.core.controllers` and `slip_control.core.mo
 * ROTATIONAL/LINEAR end with "contact lost" when the pads measure no normal force (dropped);
 * one control step per finger-1 twist, plus a watchdog step every `WATCHDOG_PERIOD_S` on the
   node clock, so stale inputs are noticed when a stream stops (safe hold within
-  ``velocity_stale_after`` + one watchdog period). Staleness and ``dt`` come from message
-  stamps and the node clock (sim time under ``use_sim_time``; CE-3, CE-7);
+  ``velocity_stale_after`` + ``stale_confirm`` + one watchdog period). Staleness and ``dt``
+  come from message stamps and the node clock (sim time under ``use_sim_time``; CE-3, CE-7);
+  a stale verdict is acted on once the other stream delivered a few samples while the stale
+  one delivered none, or after ``stale_confirm`` on the steady clock, because a node behind
+  its queues sees its clock before the samples queued with it (`StaleDebounce`);
 * publishes ``gripper/grasp_force_cmd`` (COMMAND; stamp = computation time, ``timeout =
   command_timeout``, source SLIP_CONTROLLER) on every step that yields a force,
   ``slip_control/tracking`` (SENSOR_PUB) on every LINEAR/ROTATIONAL step and
@@ -39,6 +42,7 @@ from typing import Any
 from geometry_msgs.msg import TwistStamped, WrenchStamped
 from rclpy.action import ActionServer, CancelResponse
 from rclpy.action.server import ServerGoalHandle
+from rclpy.clock import Clock, ClockType
 from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile
@@ -54,7 +58,8 @@ from slip_control.core.controllers import (ControlOutput, OffController, SlipCon
 from slip_control.core.mode_switch import (ModeRequest, build_controller, check_contact,
                                            hold_successor, with_params)
 from slip_control.core.params import SlipControllerParams
-from slip_control.core.signals import InputStatus, SensorSnapshot, assess_inputs
+from slip_control.core.signals import (InputStatus, SensorSnapshot, StaleDebounce,
+                                      assess_inputs)
 from slip_control.ros_conv import (controller_state, fill_slip_result, grasp_force_command,
                                    mode_request, properties_from_msg, s_to_stamp,
                                    tracking_to_msg, twist_from_msg, wrench_from_msg)
@@ -125,6 +130,12 @@ class SlipControllerNode(Node):
         self._safe_hold = False
         self._preset_in_use = False
         self._commands = 0
+        # Stale verdicts are confirmed on the steady clock (see StaleDebounce): a backlog in
+        # this process must not end a trajectory whose sensor streams are fine.
+        self._steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self._stale_gate = StaleDebounce(self._params.stale_confirm)
+        self._twists_received = 0
+        self._wrenches_received = 0
 
         self._cmd_pub = self.create_publisher(GraspForceCommand, 'gripper/grasp_force_cmd',
                                               COMMAND, event_callbacks=QUIET_PUB,
@@ -192,12 +203,15 @@ class SlipControllerNode(Node):
 
     def _on_wrench(self, finger: int, msg: WrenchStamped) -> None:
         self._snap = self._snap.with_wrench(finger, wrench_from_msg(msg))
+        self._wrenches_received += 1
 
     def _on_twist_2(self, msg: TwistStamped) -> None:
         self._snap = self._snap.with_twist(2, twist_from_msg(msg))
+        self._twists_received += 1
 
     def _on_twist_1(self, msg: TwistStamped) -> None:
         self._snap = self._snap.with_twist(1, twist_from_msg(msg))
+        self._twists_received += 1
         self._step(self._now())
 
     def _on_watchdog(self) -> None:
@@ -217,6 +231,7 @@ class SlipControllerNode(Node):
 
     def _on_params(self, params: SlipControllerParams) -> None:
         self._params = params
+        self._stale_gate.confirm_s = params.stale_confirm
         self._params_pending = True
         self._apply_params()
 
@@ -234,6 +249,11 @@ class SlipControllerNode(Node):
 
     def _step(self, t: float) -> None:
         self._apply_params()
+        status = self._current_status(t)
+        steady = self._steady.now().nanoseconds * 1e-9
+        if self._stale_gate.defer(not status.velocity_fresh, not status.ft_fresh, steady,
+                                  self._twists_received, self._wrenches_received):
+            return  # the last command stays in force (it carries command_timeout)
         out = self._controller.step(self._snap, t)
         self._emit(out, t)
 
@@ -373,7 +393,8 @@ class SlipControllerNode(Node):
         st = self._current_status(t)
         values = (('velocity_age_s', f'{st.velocity_age:.4f}'), ('ft_age_s', f'{st.ft_age:.4f}'),
                   ('velocity_fresh', str(st.velocity_fresh)), ('ft_fresh', str(st.ft_fresh)),
-                  ('synchronised', str(st.synced)), ('safe_hold', str(self._safe_hold)))
+                  ('synchronised', str(st.synced)), ('safe_hold', str(self._safe_hold)),
+                  ('steps_deferred_stale', str(self._stale_gate.deferred)))
         if st.all_fresh:
             return Report(Level.OK, 'inputs fresh', values)
         stale = ', '.join(n for n, ok in (('velocity', st.velocity_fresh), ('F/T', st.ft_fresh),

@@ -162,3 +162,31 @@ def test_parameter_problems_are_rejected(cls: type, change: dict, text: str) -> 
     flat.update(change)
     with pytest.raises(ParameterError, match=text):
         from_flat(cls, flat)
+
+
+def test_stale_debounce_tells_a_stopped_stream_from_a_backlog() -> None:
+    from slip_control.core.signals import STOPPED_AFTER_SAMPLES, StaleDebounce
+    gate = StaleDebounce(0.02)
+    assert not gate.defer(False, False, 0.0, 0, 0)
+    # Backlog: velocity looks stale, but its queued samples keep arriving: wait for them.
+    assert gate.defer(True, False, 1.000, 10, 50)
+    assert gate.defer(True, False, 1.005, 11, 52)
+    assert not gate.defer(False, False, 1.006, 12, 53)     # drained: fresh again, reset
+    # Stopped: no twist while the F/T stream goes on -> act before the time limit.
+    assert gate.defer(True, False, 2.000, 12, 60)
+    assert gate.defer(True, False, 2.001, 12, 60 + STOPPED_AFTER_SAMPLES - 1)
+    assert not gate.defer(True, False, 2.002, 12, 60 + STOPPED_AFTER_SAMPLES)
+    gate.defer(False, False, 2.1, 13, 70)
+    # Same for F/T stopping while twists continue.
+    assert gate.defer(False, True, 3.000, 20, 70)
+    assert not gate.defer(False, True, 3.001, 20 + STOPPED_AFTER_SAMPLES, 70)
+    gate.defer(False, False, 3.1, 30, 80)
+    # Everything quiet (or late for longer than a backlog lasts): the time limit decides.
+    assert gate.defer(True, True, 4.000, 30, 80)
+    assert gate.defer(True, True, 4.019, 30, 80)
+    assert not gate.defer(True, True, 4.021, 30, 80)
+    assert not gate.defer(True, True, 4.500, 30, 80)        # and keeps acting while it lasts
+    assert gate.deferred == 7
+    assert not StaleDebounce(0.0).defer(True, False, 0.0, 0, 0)  # 0 = act at once
+    with pytest.raises(ValueError):
+        StaleDebounce(math.nan)

@@ -252,6 +252,10 @@ class SlipControllerParams:
                                'F/T older than this -> hold the last output')
     sync_tolerance: float = _f(0.020, 's', 0.0, 1.0,
                                'finger-2 velocity stamp within this of finger 1')
+    stale_confirm: float = _f(
+        0.020, 's', 0.0, 0.5,
+        '(addition) longest wait on the steady clock before a stale verdict is acted on '
+        '(an executor backlog is not a stopped stream; see StaleDebounce)')
     command_timeout: float = _f(0.1, 's', 0.0, 10.0, 'expiry sent with each grasp-force command')
     dt_max: float = _f(0.1, 's', 1e-3, 10.0,
                        'sample intervals above this skip derivative and integral updates')

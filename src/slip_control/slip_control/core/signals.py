@@ -227,6 +227,68 @@ def assess_inputs(snapshot: SensorSnapshot, t: float, *, velocity_stale_after: f
                        velocity_age=v_age, ft_age=f_age)
 
 
+#: Samples of the still-fresh stream that prove the stale one stopped (see `StaleDebounce`).
+STOPPED_AFTER_SAMPLES = 4
+
+
+class StaleDebounce:
+    """Decides when a stale-input verdict is acted on: a stopped stream, not a backlog.
+
+    A node that falls behind its queues (a busy 2-core machine, a GC pause) handles the timer
+    or ``/clock`` update before the sensor samples queued with it, so for a moment its clock
+    runs ahead of samples that are already on their way: an executor backlog, not a stopped
+    stream. A verdict is acted on when either
+
+    * the stale stream delivered nothing while the other stream delivered
+      `STOPPED_AFTER_SAMPLES` samples (it stopped; the other one proves the node is being
+      fed), or
+    * it persisted ``confirm_s`` on a monotonic clock of the process (everything went quiet,
+      or a stream stays late for longer than a backlog lasts).
+
+    The staleness itself is still judged from stamps (CE-3); this only decides when the
+    controller sees it.
+
+    Args:
+        confirm_s: Longest wait on the monotonic clock [s]; 0 = act at once.
+    """
+
+    def __init__(self, confirm_s: float) -> None:
+        if not (confirm_s >= 0.0 and math.isfinite(confirm_s)):
+            raise ValueError(f'confirm_s must be finite and >= 0, got {confirm_s!r}')
+        self.confirm_s = confirm_s
+        self._since: float | None = None
+        self._counts = (0, 0)
+        self.deferred = 0  #: steps held back so far (diagnostics)
+
+    def defer(self, velocity_stale: bool, ft_stale: bool, now: float, velocity_samples: int,
+              ft_samples: int) -> bool:
+        """True when this step should wait for the verdict to be confirmed.
+
+        Args:
+            velocity_stale: The twists are stale now.
+            ft_stale: The wrenches are stale now.
+            now: Monotonic time [s].
+            velocity_samples: Twists received so far (both fingers, a running count).
+            ft_samples: Wrenches received so far (both fingers, a running count).
+        """
+        if not (velocity_stale or ft_stale):
+            self._since = None
+            return False
+        if self._since is None:
+            self._since = now
+            self._counts = (velocity_samples, ft_samples)
+        if now - self._since >= self.confirm_s:
+            return False
+        new_v = velocity_samples - self._counts[0]
+        new_f = ft_samples - self._counts[1]
+        if velocity_stale != ft_stale:
+            stale_new, other_new = (new_v, new_f) if velocity_stale else (new_f, new_v)
+            if stale_new == 0 and other_new >= STOPPED_AFTER_SAMPLES:
+                return False
+        self.deferred += 1
+        return True
+
+
 @dataclass(frozen=True, slots=True)
 class MiddleWrench:
     """Two-finger mean wrench in ``gripper_middle`` (§1.2).
