@@ -186,3 +186,28 @@ def test_bad_input_is_refused_with_clear_messages(ros_context, ros_env, tmp_path
     assert 'Traceback' not in bad.output() + good.output()
     assert good_code == 0
     assert bad_code == 1, 'autostart failure is reported in the exit code'
+
+
+def test_sim_on_sim_time_sets_its_own_clock_without_subscribing_to_it(
+        ros_context, ros_env, tmp_path: Path) -> None:
+    """``use_sim_time`` on the /clock source: no /clock subscription, node clock = sim time."""
+    from diagnostic_msgs.msg import DiagnosticArray
+    sim = start_sim(tmp_path, ros_env, '-p', 'use_sim_time:=true')
+    probe = Probe(ros_context)
+    diags: list[Any] = []
+    probe.node.create_subscription(DiagnosticArray, '/diagnostics', diags.append, 10)
+    status = probe.msgs['gripper/status']
+    try:
+        assert probe.spin_until(lambda: len(status) > 50 and len(diags) > 1, 30.0), sim.output()
+        readers = probe.node.get_subscriptions_info_by_topic('/clock')
+        assert [r.node_name for r in readers if r.node_name == 'sim_gripper'] == [], readers
+        assert any(r.node_name == 'sim_probe' for r in readers)  # the query itself works
+        # Its diagnostics timer and stamps run on the simulated clock (not the system clock).
+        assert abs(_stamp(diags[-1]) - _stamp(status[-1])) < 2.0, \
+            (_stamp(diags[-1]), _stamp(status[-1]))
+        assert 'sets its own clock from the simulation' in sim.output()
+    finally:
+        probe.close()
+        code = sim.stop()
+    assert code == 0, sim.output()
+    assert 'Traceback' not in sim.output()

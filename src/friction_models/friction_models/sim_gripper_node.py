@@ -26,8 +26,9 @@ from pathlib import Path
 from typing import Any
 
 from geometry_msgs.msg import PoseStamped, TwistStamped, WrenchStamped
-from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
 from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
+from rclpy.time import Time
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from slip_msgs.msg import (ContactProperties, GraspForceCommand, GripperStatus, MotorCommand,
@@ -36,6 +37,7 @@ from slip_msgs.srv import ApplyDisturbance, MoveGripper, ResetScene, SetChipMode
 from std_srvs.srv import Trigger
 
 from friction_models import ros_conv
+from friction_models.core.pacing import RealTimePacer
 from friction_models.core.presets import PresetError, load_presets, reference_presets
 from friction_models.core.sim_cell import SimCell, SimParams
 from slip_gripper_driver.common.diagnostics import DiagnosticsPublisher
@@ -105,6 +107,7 @@ class SimGripperNode(LifecycleNode):
         self._lock = threading.RLock()
         self._thread: threading.Thread | None = None
         self._running = threading.Event()
+        self._drives_own_clock = False
         self._pubs: dict[str, Any] = {}
         self._endpoints: list[Any] = []
         self._diag: DiagnosticsPublisher | None = None
@@ -136,6 +139,7 @@ class SimGripperNode(LifecycleNode):
             s.mark_initialised(calibration_source='simulation', calibration_uploaded=False,
                                speed_term='zero')
         self._create_endpoints()
+        self._drive_own_clock()
         self.get_logger().info(
             f'configured: preset {self._cfg.preset!r}, model {sim.model}, physics dt '
             f'{sim.physics_dt * 1e6:.0f} us, real-time factor {self._cfg.realtime_factor}')
@@ -196,6 +200,25 @@ class SimGripperNode(LifecycleNode):
     def _share() -> Path:
         from ament_index_python.packages import get_package_share_directory
         return Path(get_package_share_directory('friction_models'))
+
+    def _drive_own_clock(self) -> None:
+        """Under ``use_sim_time``, set this node's clock from the simulation, not from /clock.
+
+        The node *is* the /clock source: subscribing to its own /clock at the tick rate woke
+        its executor 500 times a second and took most of a core (15 % → 70 % of a core alone,
+        100 % in the sim graph, where the simulation then fell to ≈ 0.8× real time). Its clock
+        is set directly by the simulation thread instead, so timers and diagnostics still run
+        on simulated time.
+        """
+        clock_subs = [s for s in self.subscriptions if s.topic_name == '/clock']
+        if 'clock' not in self._pubs or not clock_subs:
+            self._drives_own_clock = False
+            return
+        for sub in clock_subs:
+            self.destroy_subscription(sub)
+        self._drives_own_clock = True
+        self.get_logger().info('use_sim_time: this node publishes /clock and sets its own clock '
+                               'from the simulation (no /clock subscription)')
 
     def _create_endpoints(self) -> None:
         assert self._cell is not None and self._cfg is not None
@@ -274,20 +297,23 @@ class SimGripperNode(LifecycleNode):
         period = self._cfg.step_period
         wall_prev = time.monotonic()
         next_tick = wall_prev + period
+        pacer = RealTimePacer(self._cell.params.physics_dt)  # carries the fraction of a step
         while self._running.is_set():
             now = time.monotonic()
             cfg = self._node_params.value
             with self._lock:
                 cell = self._cell
-                advance = (now - wall_prev) * cfg.realtime_factor
-                if advance > cfg.max_catch_up:  # fell behind: do not try to catch up forever
-                    self._counters['dropped_sim_s'] += advance - cfg.max_catch_up
-                    advance = cfg.max_catch_up
-                events = cell.advance(cell.t + advance)
+                # Fell behind by more than max_catch_up: drop it rather than catch up forever.
+                target = pacer.next_target(cell.t, now - wall_prev, cfg.realtime_factor,
+                                           cfg.max_catch_up)
+                self._counters['dropped_sim_s'] += target.dropped_s
+                events = cell.advance(target.until_t)
                 self._publish_events(events)
                 self._publish_ground_truth()
                 if 'clock' in self._pubs:
                     self._pubs['clock'].publish(Clock(clock=ros_conv.to_time(cell.t)))
+                if self._drives_own_clock:
+                    self.get_clock().set_ros_time_override(Time(nanoseconds=round(cell.t * 1e9)))
                 self._rtf_window.append((now, cell.t))
             wall_prev = now
             self._counters['ticks'] += 1
