@@ -26,7 +26,6 @@ from pathlib import Path
 from typing import Any
 
 from geometry_msgs.msg import PoseStamped, TwistStamped, WrenchStamped
-from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
 from rclpy.time import Time
 from rosgraph_msgs.msg import Clock
@@ -43,7 +42,8 @@ from friction_models.core.sim_cell import SimCell, SimParams
 from slip_gripper_driver.common.diagnostics import DiagnosticsPublisher
 from slip_gripper_driver.common.node_main import run_node
 from slip_gripper_driver.common.params import ParameterBinding
-from slip_gripper_driver.common.qos import CLOCK, COMMAND, LATCHED, SENSOR_PUB, overridable
+from slip_gripper_driver.common.qos import (CLOCK, COMMAND, LATCHED, QUIET_PUB, SENSOR_PUB,
+                                            overridable)
 from slip_gripper_driver.core.frames import finger_transforms, static_transforms
 from slip_gripper_driver.core.monitors import Level, Report
 from slip_gripper_driver.core.param_schema import ParameterError
@@ -222,7 +222,7 @@ class SimGripperNode(LifecycleNode):
 
     def _create_endpoints(self) -> None:
         assert self._cell is not None and self._cfg is not None
-        opts = {'qos_overriding_options': overridable()}
+        opts = {'qos_overriding_options': overridable(), 'event_callbacks': QUIET_PUB}
         pub = self.create_publisher
         self._pubs = {
             'status': pub(GripperStatus, 'gripper/status', SENSOR_PUB, **opts),
@@ -236,7 +236,7 @@ class SimGripperNode(LifecycleNode):
             'truth': pub(ContactProperties, 'sim/true_contact', LATCHED),
         }
         if self._cfg.publish_clock:
-            self._pubs['clock'] = pub(Clock, '/clock', CLOCK)
+            self._pubs['clock'] = pub(Clock, '/clock', CLOCK, event_callbacks=QUIET_PUB)
         for k in (1, 2):
             self._pubs[f'wrench_{k}'] = pub(WrenchStamped, f'finger_{k}/ft/wrench', SENSOR_PUB,
                                             **opts)
@@ -256,8 +256,7 @@ class SimGripperNode(LifecycleNode):
         self._endpoints += [
             self.create_subscription(GraspForceCommand, 'gripper/grasp_force_cmd',
                                      self._on_force_cmd, COMMAND),
-            self.create_service(Trigger, 'gripper/bias_ft', self._on_bias,
-                                callback_group=ReentrantCallbackGroup()),
+            self.create_service(Trigger, 'gripper/bias_ft', self._on_bias),
             self.create_service(Trigger, 'gripper/home', self._on_home),
             self.create_service(Trigger, 'gripper/stop', self._on_stop),
             self.create_service(Trigger, 'gripper/arm', self._on_arm),
@@ -418,8 +417,9 @@ class SimGripperNode(LifecycleNode):
     def _on_bias(self, req: Trigger.Request, res: Trigger.Response) -> Trigger.Response:
         """Start a host-side bias and answer when it completed (in simulated time).
 
-        Runs in its own reentrant callback group on a multithreaded executor, so waiting here
-        blocks neither the other callbacks nor the simulation thread.
+        The simulation thread keeps running while this waits; the node's other callbacks
+        wait (single-threaded executor, see `main`), which is why it is meant for an open
+        gripper, as in every experiment sequence.
         """
         del req
         with self._lock:
@@ -548,7 +548,12 @@ class SimGripperNode(LifecycleNode):
 
 def main(args: list[str] | None = None) -> int:
     """Console script ``sim_gripper``."""
-    return run_node(SimGripperNode, args, multithreaded=True)
+    # Single-threaded on purpose: rclpy's MultiThreadedExecutor re-polls a subscription until
+    # a worker thread has taken its message, and with the simulation thread holding the GIL
+    # that spin cost ~35 % of a core at 120 Hz of grasp-force commands (the simulation then
+    # fell behind real time). gripper/bias_ft is the only callback that waits (one bias
+    # window, ~0.25 s simulated, called with the gripper open); the simulation keeps running.
+    return run_node(SimGripperNode, args, multithreaded=False)
 
 
 if __name__ == '__main__':

@@ -26,7 +26,6 @@ import sys
 from typing import Any
 
 from geometry_msgs.msg import TwistStamped, WrenchStamped
-from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.node import Node
 from slip_msgs.msg import ContactProperties as ContactPropertiesMsg
 from slip_msgs.srv import GetContactProperties, StartEstimation
@@ -41,16 +40,13 @@ from slip_control.ros_conv import (ns_to_stamp, properties_to_msg, twist_from_ms
 from slip_gripper_driver.common.diagnostics import DiagnosticsPublisher
 from slip_gripper_driver.common.node_main import run_node
 from slip_gripper_driver.common.params import ParameterBinding
-from slip_gripper_driver.common.qos import LATCHED, SENSOR_SUB, overridable
+from slip_gripper_driver.common.qos import LATCHED, QUIET_SUB, SENSOR_SUB, overridable
 from slip_gripper_driver.core.monitors import Level, Report
 from slip_gripper_driver.core.param_schema import ParameterError
 
 #: Period of the timer that ends phases whose window passed without samples [s, node clock].
 POLL_PERIOD_S = 0.02
 
-# No default QoS-event handlers on the 1.2 kHz sensor subscriptions (two waitables each in
-# every executor wait set); a best-effort volatile subscription cannot be QoS-incompatible.
-QUIET_SUB = SubscriptionEventCallbacks(use_default_callbacks=False)
 
 _SOURCE_TOPICS = {'finger 1 wrench': 'finger_1/ft/wrench', 'finger 2 wrench': 'finger_2/ft/wrench',
                   'finger 1 velocity': 'finger_1/slip/twist',

@@ -43,7 +43,6 @@ from geometry_msgs.msg import TwistStamped, WrenchStamped
 from rclpy.action import ActionServer, CancelResponse
 from rclpy.action.server import ServerGoalHandle
 from rclpy.clock import Clock, ClockType
-from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile
 from rclpy.task import Future
@@ -66,20 +65,14 @@ from slip_control.ros_conv import (controller_state, fill_slip_result, grasp_for
 from slip_gripper_driver.common.diagnostics import DiagnosticsPublisher
 from slip_gripper_driver.common.node_main import run_node
 from slip_gripper_driver.common.params import ParameterBinding
-from slip_gripper_driver.common.qos import COMMAND, LATCHED, SENSOR_PUB, SENSOR_SUB, overridable
+from slip_gripper_driver.common.qos import (COMMAND, LATCHED, QUIET_PUB, QUIET_SUB, SENSOR_PUB,
+                                            SENSOR_SUB, overridable)
 from slip_gripper_driver.core.monitors import Level, Report
 from slip_gripper_driver.core.param_schema import ParameterError
 
 #: Watchdog period [s, node clock]: stale inputs are acted on at most this late.
 WATCHDOG_PERIOD_S = 0.01
 
-# No default QoS-event handlers on the hot-path entities: rclpy adds two waitables per
-# publisher/subscription and rebuilds the wait set on every executor iteration (~1.3 kHz
-# here), which dominated the in → out latency. Nothing is lost: a best-effort volatile
-# subscription cannot be QoS-incompatible, and for our publishers the stricter peer reports
-# the mismatch. The contact/properties subscription keeps its handlers.
-QUIET_SUB = SubscriptionEventCallbacks(use_default_callbacks=False)
-QUIET_PUB = PublisherEventCallbacks(use_default_callbacks=False)
 
 #: Twist subscriptions keep 0.25 s of samples (30 at 120 Hz) instead of SENSOR_SUB's 5: the
 #: trajectory progress integrates every sample, so a burst (a sim catching up, a busy host)

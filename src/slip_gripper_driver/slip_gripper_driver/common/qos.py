@@ -9,6 +9,7 @@ delivery the writer's history is the only slack a slow reader has; 10 samples ar
 """
 from __future__ import annotations
 
+from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
 from rclpy.qos import (DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy)
 from rclpy.qos_overriding_options import QoSOverridingOptions
 
@@ -35,3 +36,11 @@ CLOCK = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
 def overridable() -> QoSOverridingOptions:
     """Publisher option that lets users change reliability/depth/durability from YAML."""
     return QoSOverridingOptions.with_default_policies()
+
+# No default QoS-event handlers on hot-path entities. rclpy gives every publisher and
+# subscription two event waitables and rebuilds the wait set in Python on every executor
+# iteration; on the high-rate nodes that dominated the executor's cost. Nothing is lost: a
+# best-effort volatile subscription cannot be QoS-incompatible, and for a reliable publisher
+# the stricter peer reports the mismatch. Latched and command endpoints keep their handlers.
+QUIET_SUB = SubscriptionEventCallbacks(use_default_callbacks=False)
+QUIET_PUB = PublisherEventCallbacks(use_default_callbacks=False)
