@@ -138,9 +138,7 @@ def _truth_delta(msgs: dict[str, Any], t0: float, t1: float) -> tuple[float, flo
 
 @pytest.mark.parametrize('name, mode, target, unit_tol', [
     ('linear_slip', 2, 0.02, 0.002),
-    pytest.param('rotational_slip', 1, 0.3490659, math.radians(2.0), marks=pytest.mark.xfail(
-        strict=False, reason='known gap (issue 7): through the node graph the object turned '
-        '14.6 deg of the commanded 20 deg (in-process, on the same simulator: within 0.14 deg)'))])
+    ('rotational_slip', 1, 0.3490659, math.radians(2.0))])
 def test_slip_bags_reach_the_target_and_replay_through_the_core(name: str, mode: int,
                                                                 target: float,
                                                                 unit_tol: float) -> None:
