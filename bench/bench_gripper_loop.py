@@ -310,6 +310,10 @@ def run_node(duration_s: float, with_ft: bool, rt: RealtimeParams,
           f'p99 {np.percentile(lat, 99):7.1f} µs   max {lat.max():7.1f} µs')
     print(f'  missed ticks               {late + unanswered:10d}   '
           f'(latency > 2 ms: {late}, no command: {unanswered})')
+    slow = np.flatnonzero((w - a) * 1e6 > PERIOD_S * 1e6)
+    if slow.size:
+        print('  late lines at [s] (latency ms)  ' + ', '.join(
+            f'{a[i] - a[0]:.3f} ({(w[i] - a[i]) * 1e3:.1f})' for i in slow[:12]))
     print(f'  arrival gaps > 3 ms        {int((gaps > 3.0).sum()):10d}   '
           f'(max gap {gaps.max():.2f} ms; emulator late ticks {emu.get("late_ticks", "?")})')
     print(f'  status+motor publish       p50 {np.percentile(pub, 50):7.1f} µs   '
