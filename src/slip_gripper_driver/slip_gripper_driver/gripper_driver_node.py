@@ -41,7 +41,8 @@ from slip_gripper_driver import ros_conv
 from slip_gripper_driver.common.diagnostics import DiagnosticsPublisher
 from slip_gripper_driver.common.node_main import run_node
 from slip_gripper_driver.common.params import ParameterBinding
-from slip_gripper_driver.common.qos import COMMAND, LATCHED, SENSOR_PUB, SENSOR_SUB, overridable
+from slip_gripper_driver.common.qos import (COMMAND, LATCHED, QUIET_PUB, QUIET_SUB, SENSOR_PUB,
+                                            SENSOR_SUB, overridable)
 from slip_gripper_driver.core.bridge import (BridgeDiagnostics, GripperDriverCore, LineResult,
                                              LinkState, WatchdogResult)
 from slip_gripper_driver.core.force_control import BypassReason
@@ -284,24 +285,24 @@ class GripperDriverNode(LifecycleNode):
         pub = self.create_publisher
         self._pubs = {
             'status': pub(GripperStatus, 'gripper/status', SENSOR_PUB,
-                          qos_overriding_options=opts),
+                          qos_overriding_options=opts, event_callbacks=QUIET_PUB),
             'motor': pub(MotorCommand, 'gripper/motor_command', SENSOR_PUB,
-                         qos_overriding_options=opts),
+                         qos_overriding_options=opts, event_callbacks=QUIET_PUB),
             'joints': pub(JointState, 'gripper/joint_states', SENSOR_PUB,
-                          qos_overriding_options=opts),
+                          qos_overriding_options=opts, event_callbacks=QUIET_PUB),
             'static_frames': pub(TransformArray, 'gripper/static_frames', LATCHED,
                                  qos_overriding_options=opts),
             'finger_frames': pub(TransformArray, 'gripper/finger_frames', SENSOR_PUB,
-                                 qos_overriding_options=opts),
+                                 qos_overriding_options=opts, event_callbacks=QUIET_PUB),
         }
         entities: list[Any] = list(self._pubs.values())
         for channel in self.channels:
             k = channel.finger
             frame = self._frames.frame_id(f'ft_sensor_{k}')
             wrench = pub(WrenchStamped, f'finger_{k}/ft/wrench', SENSOR_PUB,
-                         qos_overriding_options=opts)
+                         qos_overriding_options=opts, event_callbacks=QUIET_PUB)
             raw = pub(WrenchStamped, f'finger_{k}/ft/raw', SENSOR_PUB,
-                      qos_overriding_options=opts)
+                      qos_overriding_options=opts, event_callbacks=QUIET_PUB)
             channel.publish_wrench = wrench_publisher(wrench, frame)
             channel.publish_raw = wrench_publisher(raw, frame)
             entities += [wrench, raw]
@@ -318,7 +319,8 @@ class GripperDriverNode(LifecycleNode):
                 entities.append(self.create_subscription(
                     WrenchStamped, topic,
                     lambda msg, s=source: s.on_wrench(*ros_conv.wrench_from_msg(msg)),
-                    SENSOR_SUB, callback_group=MutuallyExclusiveCallbackGroup()))
+                    SENSOR_SUB, callback_group=MutuallyExclusiveCallbackGroup(),
+                    event_callbacks=QUIET_SUB))
                 client = self.create_client(Trigger, f'finger_{k}/ft/bias',
                                             callback_group=self._client_group)
                 self._bias_clients.append(client)
