@@ -294,3 +294,38 @@ def test_stream_stops_mid_slip_safe_hold_within_100ms(harness, make_props, snap,
     res = result.result()
     assert res.status == GoalStatus.STATUS_ABORTED
     assert res.result.message == ('velocity stale' if stream == 'velocity' else 'F/T stale')
+
+
+@pytest.mark.parametrize('stale_confirm', [0.5, 0.0])
+def test_clock_ahead_of_queued_samples_is_a_backlog_not_a_stopped_stream(
+        harness, make_props, snap, stale_confirm: float) -> None:  # noqa: ANN001
+    """The node's clock jumps 83 ms ahead of the samples queued with it (a busy executor).
+
+    With the stale verdict confirmed (``stale_confirm`` > 0) the queued samples arrive, the
+    inputs are fresh again and the slip finishes; acting at once (0) ends it as
+    "velocity stale" although no stream stopped.
+    """
+    from action_msgs.msg import GoalStatus
+    from slip_msgs.srv import SetSlipMode as M
+    node = _controller(harness, stale_confirm=stale_confirm)
+    _, states, _ = _outputs(harness)
+    harness.publish_properties(make_props(mu_c=0.45, r=0.006))
+    assert harness.spin_until(lambda: states and states[-1].contact_valid)
+    _, result = _send_goal(harness, M.Request.LINEAR, [], distance=0.02, duration=1.0,
+                           direction_y=-1.0)
+    slide = _slide(snap, harness.t, 1.3, distance=0.02, duration=1.0)
+    harness.play(slide[:30], node)
+    queued = slide[30:40]
+    harness.advance(queued[-1].twist_1.stamp)        # the clock first (watchdog steps run)
+    for s in queued:                                 # then what was queued with it
+        harness.deliver(s, node)
+    harness.play(slide[40:], node)
+    assert harness.spin_until(result.done, 5.0)
+    res = result.result()
+    if stale_confirm > 0.0:
+        assert res.status == GoalStatus.STATUS_SUCCEEDED, res.result.message
+        assert abs(res.result.final_error) < 0.001
+        assert not any(s.safe_hold for s in states)
+    else:
+        assert res.status == GoalStatus.STATUS_ABORTED
+        assert res.result.message == 'velocity stale'
