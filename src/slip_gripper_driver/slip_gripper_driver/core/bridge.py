@@ -474,8 +474,8 @@ class GripperBridge:
         Writes the safe voltage once when the link goes stale; disarms and asks for a
         reconnection once when it faults.
         """
-        # The usual case (fresh telemetry) without the lock: the watchdog runs on an executor
-        # thread every few ms, and a lock holder descheduled there would delay the reader.
+        # The usual case (fresh telemetry) without the lock: the watchdog runs every few ms
+        # on its own thread, and a lock holder descheduled there would delay the reader.
         # Attribute reads are atomic; a NaN age (no line yet) takes the locked path.
         if self._connected and self._active:
             age = t - self._last_line_t
@@ -623,7 +623,7 @@ class GripperBridge:
 
         event = ''
         out: ForceLoopOutput | None = None
-        ft = (self._ft[0], self._ft[1])  # one consistent pair for this step
+        ft = self._ft_pair()  # one consistent pair for this step
         if self._homing.active:
             step = self._homing.step(t, angle)
             if step.voltage_v is not None and self._armed:
@@ -668,7 +668,7 @@ class GripperBridge:
         with self._lock:
             c = self._parser.counters()
             out = self._last_out
-            ft = (self._ft[0], self._ft[1])
+            ft = self._ft_pair()
             if not self._connected:
                 state = LinkState.DOWN
             elif not self._active:
@@ -770,10 +770,14 @@ class GripperBridge:
         return self._connected and self._session_lines > 0 and \
             self._line_age(t) <= self._params.link.stale_after
 
+    def _ft_pair(self) -> tuple[_FtSlot, _FtSlot]:
+        """Both fingers' latest slots, each read once (writers replace slots, never edit)."""
+        return self._ft[0], self._ft[1]
+
     def _ft_state(self, t: float, ft: tuple[_FtSlot, _FtSlot] | None = None
                   ) -> tuple[float, bool, bool]:
         """``(grasp force F_m = −(Fz1+Fz2)/2 or NaN, both biased, both fresh)``."""
-        ft1, ft2 = ft if ft is not None else (self._ft[0], self._ft[1])
+        ft1, ft2 = ft if ft is not None else self._ft_pair()
         stale = self._params.force_control.ft_stale_after
         biased = ft1.biased and ft2.biased
         fresh = t - ft1.stamp <= stale and t - ft2.stamp <= stale

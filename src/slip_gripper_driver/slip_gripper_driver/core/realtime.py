@@ -93,31 +93,29 @@ class ThreadTuning:
             return out
 
     def apply(self) -> bool:
-        """Tune the calling thread; True when everything asked for took effect."""
+        """Tune the calling thread; True when everything asked for took effect.
+
+        ``SCHED_FIFO`` is tried first; the niceness only when FIFO is off or was refused.
+        """
         name = threading.current_thread().name
-        ok = True
         outcome = 'normal'
         problems: list[str] = []
-        if self.priority > 0:
-            message = set_fifo_priority(self.priority)
+        attempts = ((self.priority > 0, set_fifo_priority, self.priority, 'SCHED_FIFO'),
+                    (self.nice != 0, set_niceness, self.nice, 'nice'))
+        for wanted, setter, value, label in attempts:
+            if not wanted or outcome != 'normal':
+                continue
+            message = setter(value)
             if message:
-                ok = False
                 problems.append(message)
             else:
-                outcome = f'SCHED_FIFO {self.priority}'
-        if outcome == 'normal' and self.nice != 0:
-            message = set_niceness(self.nice)
-            if message:
-                ok = False
-                problems.append(message)
-            else:
-                outcome = f'nice {self.nice}'
+                outcome = f'{label} {value}'
         if problems:
             outcome = f'{outcome} ({"; ".join(problems)})'
         with self._lock:
             self._results[name] = outcome
             self._failures.extend(f'{name}: {p}' for p in problems)
-        return ok
+        return not problems
 
 
 def set_fifo_priority(priority: int) -> str:
