@@ -14,6 +14,9 @@ BUILD_INPUTS := $(shell find src -type f \( -name package.xml -o -name setup.py 
 	-o -name CMakeLists.txt -o -name '*.msg' -o -name '*.srv' -o -name '*.action' \
 	-o -path '*/resource/*' -o -path '*/config/*' -o -path '*/launch/*' \) \
 	-not -path '*/__pycache__/*' 2>/dev/null)
+# friction_models' simulation core is compiled with mypyc (setup.py; list = core.native.COMPILED_MODULES).
+NATIVE_SOURCES := $(addprefix src/friction_models/friction_models/core/,native.py \
+	limit_surface.py reduced.py plant.py sensors.py sim_cell.py)
 PYTEST_ARGS ?=
 DEMO_ARGS ?=
 
@@ -35,7 +38,7 @@ $(VENV_STAMP): requirements-ros.txt requirements.txt requirements-system.txt con
 	  rm -f $(VENV)/.slip-stamp-*; touch $@; \
 	  echo "setup: venv ready in $$(( $$(date +%s) - start )) s"
 
-$(BUILD_STAMP): $(VENV_STAMP) $(BUILD_INPUTS) tools/colcon_build.sh
+$(BUILD_STAMP): $(VENV_STAMP) $(BUILD_INPUTS) $(NATIVE_SOURCES) tools/colcon_build.sh
 	@start=$$(date +%s); tools/colcon_build.sh $(VENV) $(MODE); touch $@; \
 	  echo "setup: workspace built in $$(( $$(date +%s) - start )) s"
 
@@ -56,3 +59,4 @@ lock: $(VENV_STAMP)
 
 clean:
 	rm -rf build install log $(VENV) $(VENV).pip.log .pytest_cache
+	rm -f src/friction_models/friction_models/core/*.so src/friction_models/friction_models/core/native_sources.json

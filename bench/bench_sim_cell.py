@@ -21,7 +21,10 @@ period after the last, as in the cell).
 Target (issue 4): ≥ 50× real time in-process. Best of several repetitions; the machine may
 be shared, so compare the best figures.
 
-Usage: ``python bench/bench_sim_cell.py [--quick]``.
+The header names the implementation that ran: the mypyc-compiled core (the normal build) or
+pure Python (``FRICTION_MODELS_PURE_PYTHON=1``, mypy absent, or extensions out of date).
+
+Usage: ``[FRICTION_MODELS_PURE_PYTHON=1] python bench/bench_sim_cell.py [--quick]``.
 """
 from __future__ import annotations
 
@@ -40,6 +43,7 @@ for _pkg in ('friction_models', 'slip_gripper_driver', 'slip_velocity_sensor'):
     if _path not in sys.path:
         sys.path.insert(0, _path)
 
+from friction_models.core import NATIVE_STATUS  # noqa: E402
 from friction_models.core.harness import Harness  # noqa: E402
 from friction_models.core.presets import reference_presets  # noqa: E402
 from friction_models.core.sensors import SimEvents, VelocitySensorParams  # noqa: E402
@@ -163,6 +167,7 @@ def main(argv: list[str] | None = None) -> int:
     seconds, repeats, number = (1.0, 2, 2000) if args.quick else (4.0, 3, 20000)
     print(f'Python {platform.python_version()} on {platform.machine()} '
           f'({platform.processor() or "cpu"}), best of {repeats}')
+    print(f'simulation core: {NATIVE_STATUS}')
     print()
     print('Real-time factor of the full cell (sim s per wall s; target >= 50x)')
     print(f'{"physics_dt [s]":>15} {"velocity":>9} {"hold":>8} {"slip":>8} {"explore":>8}')

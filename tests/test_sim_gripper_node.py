@@ -206,6 +206,12 @@ def test_sim_on_sim_time_sets_its_own_clock_without_subscribing_to_it(
         assert abs(_stamp(diags[-1]) - _stamp(status[-1])) < 2.0, \
             (_stamp(diags[-1]), _stamp(status[-1]))
         assert 'sets its own clock from the simulation' in sim.output()
+        # The node says which simulation core runs (compiled in the built workspace).
+        cores = {kv.value for d in diags for st in d.status for kv in st.values
+                 if kv.key == 'simulation_core'}
+        from friction_models.core import NATIVE_STATUS
+        assert cores == {str(NATIVE_STATUS)}, cores
+        assert f'simulation core {NATIVE_STATUS}' in sim.output()
     finally:
         probe.close()
         code = sim.stop()

@@ -36,6 +36,7 @@ from slip_msgs.srv import ApplyDisturbance, MoveGripper, ResetScene, SetChipMode
 from std_srvs.srv import Trigger
 
 from friction_models import ros_conv
+from friction_models.core import NATIVE_STATUS
 from friction_models.core.pacing import RealTimePacer
 from friction_models.core.presets import PresetError, load_presets, reference_presets
 from friction_models.core.sim_cell import SimCell, SimParams
@@ -142,7 +143,8 @@ class SimGripperNode(LifecycleNode):
         self._drive_own_clock()
         self.get_logger().info(
             f'configured: preset {self._cfg.preset!r}, model {sim.model}, physics dt '
-            f'{sim.physics_dt * 1e6:.0f} us, real-time factor {self._cfg.realtime_factor}')
+            f'{sim.physics_dt * 1e6:.0f} us, real-time factor {self._cfg.realtime_factor}, '
+            f'simulation core {NATIVE_STATUS}')
         return TransitionCallbackReturn.SUCCESS
 
     def on_activate(self, state: LifecycleState) -> TransitionCallbackReturn:
@@ -525,7 +527,8 @@ class SimGripperNode(LifecycleNode):
         values = (('realtime_factor', f'{rtf:.3f}'), ('target', f'{cfg.realtime_factor:.3f}'),
                   ('ticks', str(ticks)), ('late_ticks', str(late)),
                   ('dropped_sim_s', f'{self._counters["dropped_sim_s"]:.3f}'),
-                  ('rejected_commands', str(self._counters['rejected_commands'])))
+                  ('rejected_commands', str(self._counters['rejected_commands'])),
+                  ('simulation_core', str(NATIVE_STATUS)))
         if not math.isfinite(rtf):
             return Report(Level.WARN, 'not running', values)
         if abs(rtf - cfg.realtime_factor) > 0.1 * cfg.realtime_factor:

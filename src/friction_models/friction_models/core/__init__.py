@@ -7,8 +7,18 @@ Modules: :mod:`.params` (frozen parameter sets), :mod:`.one_d` (1-D laws),
 surface and its cache), :mod:`.reduced` (reduced planar LuGre, single and batched),
 :mod:`.integrators` (exponential and explicit-Euler bristle updates), :mod:`.scenarios`
 (the paper's reference scenarios).
+
+The simulation's hot modules may be mypyc-compiled; :mod:`.native` picks the compiled or the
+pure-Python implementation before anything imports them (see :data:`NATIVE_STATUS`).
 """
 from __future__ import annotations
+
+from pathlib import Path as _Path
+
+from .native import NativeStatus, select as _select_native
+
+#: Compiled or pure-Python simulation core, and why (decided once, at import).
+NATIVE_STATUS: NativeStatus = _select_native(__name__, _Path(__file__).resolve().parent)
 
 from .distributed import DistributedPlanarLuGre, steady_state_wrenches
 from .integrators import UnstableStepError, phi
@@ -25,6 +35,7 @@ from .surfaces import (STANDARD_SURFACES, ContactSurface, circle, line, line_gra
                        non_convex_1, non_convex_2, soft_finger, square, standard_surface)
 
 __all__ = [
+                            'NATIVE_STATUS',
                             'PARAMETER_SETS',
                             'STANDARD_SURFACES',
                             'AmendedLuGre',
@@ -40,6 +51,7 @@ __all__ = [
                             'LimitSurfaceCache',
                             'LuGre',
                             'LuGreParams',
+                            'NativeStatus',
                             'ReducedPlanarLuGre',
                             'ReducedPlanarLuGreBatch',
                             'Stribeck',

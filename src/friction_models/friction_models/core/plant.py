@@ -114,7 +114,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import NamedTuple, Optional, Union
+from typing import Any, NamedTuple, Optional, Union
 
 import numpy as np
 
@@ -141,7 +141,8 @@ __all__ = [
 FrictionModel = Union[ReducedPlanarLuGre, DistributedPlanarLuGre]
 
 
-def _f(default: float, unit: str, low: float, high: float, description: str) -> float:
+def _f(default: float, unit: str, low: float, high: float, description: str) -> Any:
+    # Any, not float: the value is a dataclass field spec (mypyc checks declared types).
     return field(default=default, metadata={
         'unit': unit, 'range': (low, high), 'description': description})
 
@@ -479,8 +480,9 @@ class PadContact:
     def spring(self, f_n: float) -> tuple[float, float, float]:
         """Bristle spring wrench ``−σ0 f_n z`` at the pad centre, pad frame [N, N, N·m]."""
         k = self._neg_sigma0 * f_n
-        if self.reduced:
-            z0, z1, z2 = self.model.state_tuple
+        model = self.model
+        if isinstance(model, ReducedPlanarLuGre):
+            z0, z1, z2 = model.state_tuple
             fx, fy = k * z0, k * z1
             return fx, fy, k * z2 + self.cx * fy - self.cy * fx
         z = self.model.state
@@ -741,8 +743,9 @@ class Plant:
         if self.in_contact:
             for pad in self.pads:
                 k = 0.5 * pad.params.sigma0 * self.f_n
-                if pad.reduced:
-                    z0, z1, z2 = pad.model.state_tuple
+                model = pad.model
+                if isinstance(model, ReducedPlanarLuGre):
+                    z0, z1, z2 = model.state_tuple
                     e += k * (z0 * z0 + z1 * z1 + (z2 / pad.r_a) ** 2)
                 else:
                     z = pad.model.state

@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Iterator, Optional, Union
+from typing import Any, Iterator, Optional, Union
 
 import numpy as np
 
@@ -56,13 +56,14 @@ CHIP_GAINS_1: tuple[float, ...] = (0.8847, 0.9066, 0.8852, 0.8831, 0.9313, 0.928
 CHIP_GAINS_2: tuple[float, ...] = (0.7086, 0.7029, 0.8573, 0.8800, 0.8861, 0.9008)
 
 
-def _f(default: float, unit: str, low: float, high: float, description: str) -> float:
+def _f(default: float, unit: str, low: float, high: float, description: str) -> Any:
+    # Any, not float: the value is a dataclass field spec (mypyc checks declared types).
     return field(default=default, metadata={
         'unit': unit, 'range': (low, high), 'description': description})
 
 
 def _t(default: tuple[float, ...], unit: str, low: float, high: float,
-       description: str) -> tuple[float, ...]:
+       description: str) -> Any:
     return field(default=default, metadata={
         'unit': unit, 'range': (low, high), 'description': description})
 
