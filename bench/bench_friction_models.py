@@ -28,9 +28,9 @@ _PKG = str(_ROOT / 'src' / 'friction_models')
 if _PKG not in sys.path:
     sys.path.insert(0, _PKG)
 
-from friction_models.core import (AmendedLuGre, DistributedPlanarLuGre,  # noqa: E402
-                                  LimitSurface, LuGreParams, ReducedPlanarLuGre,
-                                  ReducedPlanarLuGreBatch, square)
+from friction_models.core import (NATIVE_STATUS, AmendedLuGre,  # noqa: E402
+                                  DistributedPlanarLuGre, LimitSurface, LuGreParams,
+                                  ReducedPlanarLuGre, ReducedPlanarLuGreBatch, square)
 
 PARAMS = LuGreParams(sigma0=1e5, sigma1=20.0, sigma2=0.2)
 TWIST = (0.1, -0.05, 1.59)
@@ -69,6 +69,7 @@ def main() -> int:
     steps, repeats = (2000, 3) if args.quick else (10_000, 10)
     print(f'# friction_models benchmark: Python {platform.python_version()}, numpy '
           f'{np.__version__}, {platform.machine()}, steps={steps}, best of {repeats}')
+    print(f'# simulation core: {NATIVE_STATUS} (limit_surface and reduced are among its modules)')
 
     print('\n## Per-step cost [µs/step]')
     print(f'{"model":<44}{"5x5":>9}{"21x21":>9}{"33x33":>9}   target')
