@@ -70,22 +70,22 @@ def test_makefile_rebuilds_when_a_compiled_source_changes() -> None:
 
 
 _REPORT = r'''
-import json, sys, warnings
+import importlib, json, warnings
 warnings.simplefilter('always')
 import friction_models.core as core
 from friction_models.core import native
-mods = {m: sys.modules[f'friction_models.core.{m}'].__file__
-        for m in native.COMPILED_MODULES
-        if __import__(f'friction_models.core.{m}') and f'friction_models.core.{m}' in sys.modules}
+files = {m: importlib.import_module(f'friction_models.core.{m}').__file__
+         for m in native.COMPILED_MODULES}
 print(json.dumps({'compiled': core.NATIVE_STATUS.compiled, 'reason': core.NATIVE_STATUS.reason,
-                  'files': mods}))
+                  'files': files}))
 '''
 
 
 def _run(code: str, env_extra: dict[str, str], pythonpath: str | None = None
          ) -> subprocess.CompletedProcess[str]:
-    env = dict(os.environ, **env_extra)
-    env.pop(native.ENV_PURE_PYTHON, None) if native.ENV_PURE_PYTHON not in env_extra else None
+    env = dict(os.environ)
+    env.pop(native.ENV_PURE_PYTHON, None)   # the caller's choice only
+    env.update(env_extra)
     if pythonpath is not None:
         env['PYTHONPATH'] = pythonpath + os.pathsep + env.get('PYTHONPATH', '')
     return subprocess.run([sys.executable, '-c', code], env=env, capture_output=True, text=True,
