@@ -213,6 +213,7 @@ def run_node(duration_s: float, with_ft: bool, rt: RealtimeParams,
     from std_srvs.srv import Trigger
 
     from slip_gripper_driver.gripper_driver_node import GripperDriverNode
+    from slip_gripper_driver.testing import SpinThread
 
     tmp = tempfile.mkdtemp(prefix='bench_gripper_node_')
     port = os.path.join(tmp, 'gripper')
@@ -254,16 +255,10 @@ def run_node(duration_s: float, with_ft: bool, rt: RealtimeParams,
     node._on_result = on_result  # noqa: SLF001 - before configure: the core binds it there
     executor = MultiThreadedExecutor(context=context)
     executor.add_node(node)
-    stop = threading.Event()
-
-    def spin() -> None:
-        # As ``main`` does: the spinning thread (and the executor workers it starts) get the
-        # node's realtime.* scheduling, so no GIL holder of the driver is preempted by others.
-        spin_tuning.append(node.tune_spin_thread())
-        while not stop.is_set():
-            executor.spin_once(timeout_sec=0.05)
+    # As ``main`` does: the spinning thread (and the executor workers it starts) get the
+    # node's realtime.* scheduling, so no GIL holder of the driver is preempted by others.
     spin_tuning: list[str] = []
-    spinner = threading.Thread(target=spin, daemon=True)
+    spinner = SpinThread(executor, on_start=lambda: spin_tuning.append(node.tune_spin_thread()))
     spinner.start()
     try:
         ok = TransitionCallbackReturn.SUCCESS
@@ -286,8 +281,7 @@ def run_node(duration_s: float, with_ft: bool, rt: RealtimeParams,
     finally:
         from slip_gripper_driver.common.node_main import shutdown_lifecycle
         shutdown_lifecycle(node)
-        stop.set()
-        spinner.join(2.0)
+        spinner.stop()
         executor.shutdown()
         node.destroy_node()
         rclpy.try_shutdown(context=context)

@@ -94,6 +94,7 @@ def main() -> int:
     from slip_msgs.msg import GripperStatus
 
     from slip_gripper_driver.common.qos import SENSOR_SUB
+    from slip_gripper_driver.testing import SpinThread
 
     cmd = [sys.executable, '-m', 'slip_control.run_graph', '--sim']
     if args.alone:
@@ -135,13 +136,7 @@ def main() -> int:
     node.create_subscription(DiagnosticArray, '/diagnostics', on_diag, 10)
     executor = SingleThreadedExecutor()
     executor.add_node(node)
-    stop = threading.Event()
-
-    def spin() -> None:
-        while not stop.is_set():
-            executor.spin_once(timeout_sec=0.05)
-    spinner = threading.Thread(target=spin, daemon=True)
-    spinner.start()
+    spinner = SpinThread(executor).start()
     try:
         deadline = time.monotonic() + 30.0
         while 'last' not in diag and time.monotonic() < deadline:
@@ -174,8 +169,7 @@ def main() -> int:
         with lock:
             last = dict(diag['last'])
     finally:
-        stop.set()
-        spinner.join(2.0)
+        spinner.stop()
         executor.shutdown()
         node.destroy_node()
         rclpy.try_shutdown()

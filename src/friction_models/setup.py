@@ -17,7 +17,7 @@ PACKAGE = 'friction_models'
 CORE = Path(PACKAGE) / 'core'
 
 
-def _native_helper():
+def _load_native():
     """friction_models.core.native, loaded by path (importing the package needs numpy)."""
     spec = importlib.util.spec_from_file_location('_fm_native', CORE / 'native.py')
     module = importlib.util.module_from_spec(spec)
@@ -26,12 +26,14 @@ def _native_helper():
     return module
 
 
+NATIVE = _load_native()
+
+
 def compiled_core() -> list:
     """mypyc extensions of the hot simulation modules, or [] (pure Python)."""
-    native = _native_helper()
     if not {'build_ext', 'develop', 'install', 'build', 'bdist_wheel'} & set(sys.argv):
         return []   # metadata queries (egg_info, --name, ...) leave any build untouched
-    manifest = CORE / native.MANIFEST_NAME
+    manifest = CORE / NATIVE.MANIFEST_NAME
     if manifest.exists():
         manifest.unlink()   # no manifest = no compiled core claimed until the build succeeds
     if os.environ.get('FRICTION_MODELS_COMPILE', '1') == '0':
@@ -43,7 +45,7 @@ def compiled_core() -> list:
         print('friction_models: mypy is not installed; the simulation core stays pure Python '
               '(about 2.5x slower)', file=sys.stderr)
         return []
-    paths = [str(CORE / f'{m}.py') for m in native.COMPILED_MODULES]
+    paths = [str(CORE / f'{m}.py') for m in NATIVE.COMPILED_MODULES]
     try:
         extensions = mypycify(['--ignore-missing-imports', *paths], opt_level='3',
                               group_name=f'{PACKAGE}.core._native')
@@ -51,7 +53,7 @@ def compiled_core() -> list:
         print(f'friction_models: mypyc could not compile the simulation core ({exc!r}); it '
               'stays pure Python', file=sys.stderr)
         return []
-    manifest.write_text(native.manifest_text(CORE, f'mypyc {mypy.version.__version__}'))
+    manifest.write_text(NATIVE.manifest_text(CORE, f'mypyc {mypy.version.__version__}'))
     return extensions
 
 setup(
@@ -59,7 +61,7 @@ setup(
     version='0.1.0',
     packages=find_packages(exclude=['test']),
     ext_modules=compiled_core(),
-    package_data={PACKAGE + '.core': ['native_sources.json']},
+    package_data={PACKAGE + '.core': [NATIVE.MANIFEST_NAME]},
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + PACKAGE]),
         ('share/' + PACKAGE, ['package.xml']),

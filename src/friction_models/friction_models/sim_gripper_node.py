@@ -311,10 +311,11 @@ class SimGripperNode(LifecycleNode):
                 events = cell.advance(target.until_t)
                 self._publish_events(events)
                 self._publish_ground_truth()
-                if 'clock' in self._pubs:
-                    self._pubs['clock'].publish(Clock(clock=ros_conv.to_time(cell.t)))
-                if self._drives_own_clock:
-                    self.get_clock().set_ros_time_override(Time(nanoseconds=round(cell.t * 1e9)))
+                if 'clock' in self._pubs:   # _drives_own_clock implies a /clock publisher
+                    stamp = ros_conv.to_time(cell.t)
+                    self._pubs['clock'].publish(Clock(clock=stamp))
+                    if self._drives_own_clock:
+                        self.get_clock().set_ros_time_override(Time.from_msg(stamp))
                 self._rtf_window.append((now, cell.t))
             wall_prev = now
             self._counters['ticks'] += 1

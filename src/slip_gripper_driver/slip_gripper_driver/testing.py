@@ -9,10 +9,55 @@ import os
 import signal
 import subprocess
 import sys
+import threading
 from pathlib import Path
-from typing import Sequence
+from typing import Any, Callable, Optional, Sequence
 
 from slip_gripper_driver.common.calls import call_service, spin_until  # noqa: F401 (re-export)
+
+
+class SpinThread:
+    """Spin an executor on a daemon thread (``spin_once`` slices) until `stop`.
+
+    `stop` joins the thread, so no wait set still holds entities when the caller then shuts the
+    executor down or destroys nodes. Also a context manager (starts on enter, stops on exit).
+
+    Args:
+        executor: Any rclpy executor with its nodes added.
+        on_start: Called once on the spinning thread before it spins (e.g. thread tuning).
+        slice_s: ``spin_once`` timeout [s]: the longest `stop` waits for the thread.
+    """
+
+    def __init__(self, executor: Any, on_start: Optional[Callable[[], Any]] = None,
+                 slice_s: float = 0.05) -> None:
+        self.executor = executor
+        self._on_start = on_start
+        self._slice_s = slice_s
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name='spin', daemon=True)
+
+    def start(self) -> SpinThread:
+        """Start spinning; returns self."""
+        self._thread.start()
+        return self
+
+    def _run(self) -> None:
+        if self._on_start is not None:
+            self._on_start()
+        while not self._stop.is_set():
+            self.executor.spin_once(timeout_sec=self._slice_s)
+
+    def stop(self, timeout_s: float = 2.0) -> None:
+        """Stop spinning and join the thread (bounded by ``timeout_s``)."""
+        self._stop.set()
+        if self._thread.is_alive():
+            self._thread.join(timeout_s)
+
+    def __enter__(self) -> SpinThread:
+        return self.start()
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
 
 
 def workspace_root() -> Path:

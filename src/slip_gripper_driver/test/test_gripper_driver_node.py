@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import math
 import sys
-import threading
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -112,13 +111,12 @@ class Rig:
         from rclpy.parameter import Parameter
 
         from slip_gripper_driver.gripper_driver_node import GripperDriverNode
+        from slip_gripper_driver.testing import SpinThread
         self.node = GripperDriverNode(context=ctx, parameter_overrides=[
             Parameter(k, value=v) for k, v in overrides.items()])
         self.executor = MultiThreadedExecutor(num_threads=3, context=ctx)
         self.executor.add_node(self.node)
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._spin, daemon=True)
-        self._thread.start()
+        self._spinner = SpinThread(self.executor).start()
         self.probe = Node('probe', context=ctx)
         self.probe_exec = SingleThreadedExecutor(context=ctx)
         self.probe_exec.add_node(self.probe)
@@ -130,10 +128,6 @@ class Rig:
         from slip_gripper_driver.common.qos import COMMAND
         self._cmd_pub = self.probe.create_publisher(GraspForceCommand,
                                                     'gripper/grasp_force_cmd', COMMAND)
-
-    def _spin(self) -> None:
-        while not self._stop.is_set():
-            self.executor.spin_once(timeout_sec=0.05)
 
     def subscribe(self, msg_type: type, topic: str, qos: Any = None) -> list[Any]:
         from rclpy.qos import QoSProfile, ReliabilityPolicy
@@ -181,8 +175,7 @@ class Rig:
         try:
             shutdown_lifecycle(self.node)
         finally:
-            self._stop.set()
-            self._thread.join(2.0)
+            self._spinner.stop()
             self.executor.shutdown()
             self.probe_exec.shutdown()
             self.node.destroy_node()
@@ -528,7 +521,7 @@ def test_topic_mode_consumes_standalone_netft_drivers_and_biases_through_them(
 
     from slip_gripper_driver.gripper_driver_node import GripperDriverNode
     from slip_gripper_driver.netft_driver_node import NetFTDriverNode
-    from slip_gripper_driver.testing import call_service, spin_until
+    from slip_gripper_driver.testing import SpinThread, call_service, spin_until
 
     def params(values: dict[str, Any]) -> list[Any]:
         return [Parameter(k, value=v) for k, v in values.items()]
@@ -545,13 +538,7 @@ def test_topic_mode_consumes_standalone_netft_drivers_and_biases_through_them(
     executor = MultiThreadedExecutor(num_threads=4, context=ros_context)
     for node in (*drivers, gripper):
         executor.add_node(node)
-    stop = threading.Event()
-
-    def spin() -> None:
-        while not stop.is_set():
-            executor.spin_once(timeout_sec=0.05)
-    thread = threading.Thread(target=spin, daemon=True)
-    thread.start()
+    spinner = SpinThread(executor).start()
     probe = Node('probe', context=ros_context)
     probe_exec = SingleThreadedExecutor(context=ros_context)
     probe_exec.add_node(probe)
@@ -578,8 +565,7 @@ def test_topic_mode_consumes_standalone_netft_drivers_and_biases_through_them(
         assert report.level != 2, report  # fresh (the rate depends on this crowded process)
     finally:
         from slip_gripper_driver.common.node_main import shutdown_lifecycle
-        stop.set()  # no wait set may hold entities that the shutdown destroys
-        thread.join(2.0)
+        spinner.stop()  # no wait set may hold entities that the shutdown destroys
         for node in (gripper, *drivers):
             shutdown_lifecycle(node)
         executor.shutdown()

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import socket
-import threading
 from typing import Any, Iterator
 
 import pytest
@@ -47,18 +46,12 @@ def test_raw_then_bias_service_then_biased_wrench_diagnostics_and_stop_on_shutdo
 
     from slip_gripper_driver.common.node_main import shutdown_lifecycle
     from slip_gripper_driver.netft_driver_node import NetFTDriverNode
-    from slip_gripper_driver.testing import call_service, spin_until
+    from slip_gripper_driver.testing import SpinThread, call_service, spin_until
 
     node = NetFTDriverNode(context=ros_context, parameter_overrides=overrides(box.address[1]))
     executor = MultiThreadedExecutor(num_threads=2, context=ros_context)
     executor.add_node(node)
-    stop = threading.Event()
-
-    def spin() -> None:
-        while not stop.is_set():
-            executor.spin_once(timeout_sec=0.05)
-    thread = threading.Thread(target=spin, daemon=True)
-    thread.start()
+    spinner = SpinThread(executor).start()
     probe = Node('probe', context=ros_context)
     probe_exec = SingleThreadedExecutor(context=ros_context)
     probe_exec.add_node(probe)
@@ -101,8 +94,7 @@ def test_raw_then_bias_service_then_biased_wrench_diagnostics_and_stop_on_shutdo
         assert box.biases == 1
     finally:
         shutdown_lifecycle(node)
-        stop.set()
-        thread.join(2.0)
+        spinner.stop()
         executor.shutdown()
         probe_exec.shutdown()
         node.destroy_node()

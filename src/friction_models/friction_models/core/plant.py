@@ -114,11 +114,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any, NamedTuple, Optional, Union
+from typing import NamedTuple, Optional, Union
 
 import numpy as np
 
 from slip_gripper_driver.core.frames import FrameParams, planar_from_middle, planar_to_middle
+from slip_gripper_driver.core.param_schema import ranged_field as _f
 
 from .distributed import DistributedPlanarLuGre
 from .limit_surface import LimitSurfaceCache, characteristic_radius
@@ -139,12 +140,6 @@ __all__ = [
 ]
 
 FrictionModel = Union[ReducedPlanarLuGre, DistributedPlanarLuGre]
-
-
-def _f(default: float, unit: str, low: float, high: float, description: str) -> Any:
-    # Any, not float: the value is a dataclass field spec (mypyc checks declared types).
-    return field(default=default, metadata={
-        'unit': unit, 'range': (low, high), 'description': description})
 
 
 @dataclass(frozen=True)
@@ -485,7 +480,7 @@ class PadContact:
             z0, z1, z2 = model.state_tuple
             fx, fy = k * z0, k * z1
             return fx, fy, k * z2 + self.cx * fy - self.cy * fx
-        z = self.model.state
+        z = model.state
         w, wx, wy = self._dist_w
         zx, zy = z[..., 0], z[..., 1]
         return (k * float(np.sum(w * zx)), k * float(np.sum(w * zy)),
@@ -748,7 +743,7 @@ class Plant:
                     z0, z1, z2 = model.state_tuple
                     e += k * (z0 * z0 + z1 * z1 + (z2 / pad.r_a) ** 2)
                 else:
-                    z = pad.model.state
+                    z = model.state
                     e += k * float(np.sum(pad.surface.pressure[..., None] * z * z))
         return e
 

@@ -27,10 +27,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any, Iterator, Optional, Union
+from typing import Iterator, Optional, Union
 
 import numpy as np
 
+from slip_gripper_driver.core.param_schema import ranged_field as _f
 from slip_velocity_sensor.core.chip_model import ChipModelParams, CountQuantizer
 from slip_velocity_sensor.core.fusion import FusionParams, RigidBodyFusion
 
@@ -56,25 +57,13 @@ CHIP_GAINS_1: tuple[float, ...] = (0.8847, 0.9066, 0.8852, 0.8831, 0.9313, 0.928
 CHIP_GAINS_2: tuple[float, ...] = (0.7086, 0.7029, 0.8573, 0.8800, 0.8861, 0.9008)
 
 
-def _f(default: float, unit: str, low: float, high: float, description: str) -> Any:
-    # Any, not float: the value is a dataclass field spec (mypyc checks declared types).
-    return field(default=default, metadata={
-        'unit': unit, 'range': (low, high), 'description': description})
-
-
-def _t(default: tuple[float, ...], unit: str, low: float, high: float,
-       description: str) -> Any:
-    return field(default=default, metadata={
-        'unit': unit, 'range': (low, high), 'description': description})
-
-
 @dataclass(frozen=True)
 class FtSensorParams:
     """F/T sensor model (parameter group ``ft``). Offsets are (Fx, Fy, Fz, Tx, Ty, Tz)."""
 
-    offset_1: tuple[float, ...] = _t((0.35, -0.22, 1.10, 0.012, -0.008, 0.0021), 'N, N·m',
+    offset_1: tuple[float, ...] = _f((0.35, -0.22, 1.10, 0.012, -0.008, 0.0021), 'N, N·m',
                                      -100.0, 100.0, 'constant offset of finger 1 sensor')
-    offset_2: tuple[float, ...] = _t((-0.41, 0.18, 0.85, -0.006, 0.010, -0.0015), 'N, N·m',
+    offset_2: tuple[float, ...] = _f((-0.41, 0.18, 0.85, -0.006, 0.010, -0.0015), 'N, N·m',
                                      -100.0, 100.0, 'constant offset of finger 2 sensor')
     noise_std: float = _f(0.02, 'N', 0.0, 10.0, 'white noise of each force component')
     torque_noise_std: float = _f(2.5e-4, 'N·m', 0.0, 1.0,
@@ -94,9 +83,9 @@ class VelocitySensorParams:
     phase_2: float = _f(0.37, '-', 0.0, 1.0,
                         'finger 2 output phase as a fraction of the period')
     radius: float = _f(0.0243, 'm', 0.001, 0.5, 'chip distance from the sensor centre')
-    chip_gains_1: tuple[float, ...] = _t(CHIP_GAINS_1, '-', 0.05, 5.0,
+    chip_gains_1: tuple[float, ...] = _f(CHIP_GAINS_1, '-', 0.05, 5.0,
                                          'finger 1 chip gains b (x1, y1, x2, y2, x3, y3)')
-    chip_gains_2: tuple[float, ...] = _t(CHIP_GAINS_2, '-', 0.05, 5.0,
+    chip_gains_2: tuple[float, ...] = _f(CHIP_GAINS_2, '-', 0.05, 5.0,
                                          'finger 2 chip gains b (x1, y1, x2, y2, x3, y3)')
     count_noise_std: float = _f(0.0, 'counts', 0.0, 100.0,
                                 'extra counts per output period per chip axis (chips model)')

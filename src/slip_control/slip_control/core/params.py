@@ -18,6 +18,7 @@ from typing import Any
 
 from slip_gripper_driver.core.frames import FrameParams
 from slip_gripper_driver.core.param_schema import ParameterError, check_value, flatten, specs
+from slip_gripper_driver.core.param_schema import ranged_field as _f
 
 
 def _problems(instance: Any) -> list[str]:
@@ -34,15 +35,8 @@ def _raise_if(problems: list[str]) -> None:
         raise ParameterError('; '.join(problems))
 
 
-def _f(default: float, unit: str, low: float, high: float, description: str) -> Any:
-    """A float field with metadata (keeps the tables below readable)."""
-    return field(default=default, metadata={
-        'unit': unit, 'range': (low, high), 'description': description})
-
-
 def _i(default: int, low: int, high: int, description: str) -> Any:
-    return field(default=default, metadata={
-        'unit': '-', 'range': (low, high), 'description': description})
+    return _f(default, '-', low, high, description)
 
 
 def _b(default: bool, description: str) -> Any:

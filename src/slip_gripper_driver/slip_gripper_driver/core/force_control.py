@@ -46,6 +46,7 @@ import math
 from dataclasses import dataclass, field
 from enum import IntEnum
 
+from slip_gripper_driver.core.param_schema import ranged_field as _f
 from slip_gripper_driver.core.validation import validate_fields
 
 #: Longest ``dt`` [s] accepted for the integral update; longer (or ≤ 0) steps skip it.
@@ -53,11 +54,6 @@ MAX_DT_S = 0.1
 
 #: Regulariser of the anti-windup back-calculation ``E = I / (ki + 1e-6)`` [1/s].
 _KI_EPS = 1e-6
-
-
-def _f(default: float, unit: str, low: float, high: float, description: str) -> float:
-    return field(default=default, metadata={
-        'unit': unit, 'range': (low, high), 'description': description})
 
 
 @dataclass(frozen=True)

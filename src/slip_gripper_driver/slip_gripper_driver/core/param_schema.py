@@ -42,6 +42,16 @@ class ParamSpec:
     is_tuple: bool = False
 
 
+def ranged_field(default: Any, unit: str, low: float, high: float, description: str) -> Any:
+    """A dataclass field carrying the ``unit``, ``range`` and ``description`` metadata above.
+
+    Returns ``Any`` (a field spec, not the value) so it can initialise a field of any declared
+    type; mypyc-compiled modules check declared types at run time.
+    """
+    return dataclasses.field(default=default, metadata={
+        'unit': unit, 'range': (low, high), 'description': description})
+
+
 class ParameterError(ValueError):
     """Raised when a parameter set is invalid; the message lists every problem."""
 
