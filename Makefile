@@ -46,13 +46,13 @@ test: setup
 	@$(RUN) $(PY) -m pytest $(PYTEST_ARGS)
 
 demo: setup
-	@$(RUN) $(PY) -m slip_control.demo $(DEMO_ARGS)
+	@$(RUN) $(PY) -m slip_bringup.demo $(DEMO_ARGS)
 
 bench: setup
 	@for b in bench/bench_*.py; do echo "=== $$b"; $(RUN) $(PY) $$b --quick; done
 
 bags: setup
-	@$(RUN) $(PY) -m slip_control.make_bags --output bags
+	@$(RUN) $(PY) -m slip_bringup.make_bags --output bags
 
 lock: $(VENV_STAMP)
 	@tools/lock.sh $(VENV) > constraints.txt

@@ -43,7 +43,7 @@ from slip_gripper_driver.core.netft import ForceTorqueScale, FtSample, NetFTClie
 from slip_gripper_driver.core.protocol import LineKind  # noqa: E402
 from slip_gripper_driver.core.realtime import (RealtimeParams, ThreadTuning,  # noqa: E402
                                                freeze_gc)
-from slip_gripper_driver.core.transport import SerialLink  # noqa: E402
+from slip_cell_common.core.serial_transport import SerialLink  # noqa: E402
 
 PERIOD_S = 0.002
 WARMUP_S = 1.0
@@ -213,7 +213,7 @@ def run_node(duration_s: float, with_ft: bool, rt: RealtimeParams,
     from std_srvs.srv import Trigger
 
     from slip_gripper_driver.gripper_driver_node import GripperDriverNode
-    from slip_gripper_driver.testing import SpinThread
+    from slip_cell_common.testing import SpinThread
 
     tmp = tempfile.mkdtemp(prefix='bench_gripper_node_')
     port = os.path.join(tmp, 'gripper')
@@ -279,7 +279,7 @@ def run_node(duration_s: float, with_ft: bool, rt: RealtimeParams,
         diag = node.core.bridge.diagnostics(node.now())
         tuning = node._tuning  # noqa: SLF001 - what the reader threads reported
     finally:
-        from slip_gripper_driver.common.node_main import shutdown_lifecycle
+        from slip_cell_common.node_main import shutdown_lifecycle
         shutdown_lifecycle(node)
         spinner.stop()
         executor.shutdown()

@@ -20,7 +20,7 @@ from slip_control.core.mode_switch import ModeRequest, build_controller
 from slip_control.core.params import ContactEstimatorParams, SlipControllerParams
 from slip_control.core.signals import SensorSnapshot
 from slip_control.ros_conv import twist_from_msg, wrench_from_msg
-from slip_gripper_driver.common.bag_io import bag_info, read_messages, stamp_s
+from slip_cell_common.bag_io import bag_info, read_messages, stamp_s
 
 SENSORS = ('/finger_1/ft/wrench', '/finger_2/ft/wrench', '/finger_1/slip/twist',
            '/finger_2/slip/twist')

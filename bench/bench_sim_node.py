@@ -93,12 +93,12 @@ def main() -> int:
     from rosgraph_msgs.msg import Clock
     from slip_msgs.msg import GripperStatus
 
-    from slip_gripper_driver.common.qos import SENSOR_SUB
-    from slip_gripper_driver.testing import SpinThread
+    from slip_cell_common.qos import SENSOR_SUB
+    from slip_cell_common.testing import SpinThread
 
-    cmd = [sys.executable, '-m', 'slip_control.run_graph', '--sim']
+    cmd = [sys.executable, '-m', 'slip_bringup.run_graph', '--sim']
     if args.alone:
-        cmd = [sys.executable, '-m', 'slip_control.run_graph', '--config',
+        cmd = [sys.executable, '-m', 'slip_bringup.run_graph', '--config',
                str(_alone_graph())]
     graph = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
                              start_new_session=True)

@@ -94,10 +94,10 @@ def _dds(n_twists: int) -> None:
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.node import Node
     from rclpy.qos import QoSProfile, ReliabilityPolicy
-    from slip_control.ros_conv import ns_to_stamp, properties_to_msg
-    from slip_gripper_driver.common.calls import call_service, spin_until
-    from slip_gripper_driver.common.qos import LATCHED, SENSOR_PUB
-    from slip_gripper_driver.testing import NodeProcess
+    from slip_control.ros_conv import nanoseconds_to_stamp, properties_to_msg
+    from slip_cell_common.calls import call_service, spin_until
+    from slip_cell_common.qos import LATCHED, SENSOR_PUB
+    from slip_cell_common.testing import NodeProcess
     from slip_msgs.msg import ContactProperties as ContactPropertiesMsg
     from slip_msgs.msg import GraspForceCommand
     from slip_msgs.srv import SetSlipMode
@@ -128,7 +128,7 @@ def _dds(n_twists: int) -> None:
     clock = node.get_clock()
 
     def wrenches() -> None:
-        stamp = ns_to_stamp(clock.now().nanoseconds)
+        stamp = nanoseconds_to_stamp(clock.now().nanoseconds)
         for k, pub in enumerate(wpub, start=1):
             m = WrenchStamped()
             m.header.stamp, m.header.frame_id = stamp, f'ft_sensor_{k}'
@@ -137,7 +137,7 @@ def _dds(n_twists: int) -> None:
             pub.publish(m)
 
     def twists() -> int:
-        stamp = ns_to_stamp(clock.now().nanoseconds)
+        stamp = nanoseconds_to_stamp(clock.now().nanoseconds)
         msgs = []
         for k in (2, 1):
             m = TwistStamped()
@@ -173,7 +173,7 @@ def _dds(n_twists: int) -> None:
 
     try:
         props = _props()
-        ppub.publish(properties_to_msg(props, ns_to_stamp(clock.now().nanoseconds)))
+        ppub.publish(properties_to_msg(props, nanoseconds_to_stamp(clock.now().nanoseconds)))
         client = node.create_client(SetSlipMode, 'slip_control/set_mode')
         ok = False
         deadline = time.monotonic() + 20.0
@@ -182,7 +182,7 @@ def _dds(n_twists: int) -> None:
                                10.0)
             ok = res is not None and res.success
             if not ok:
-                ppub.publish(properties_to_msg(props, ns_to_stamp(clock.now().nanoseconds)))
+                ppub.publish(properties_to_msg(props, nanoseconds_to_stamp(clock.now().nanoseconds)))
                 spin_until(ex, lambda: False, 0.2)
         if not ok:
             sys.exit(f'slip_controller did not accept HOLD; log: {log}')

@@ -6,7 +6,7 @@ sensor, line arrival to published twist p99 <= 1 ms).
    six chip readings (+ outlier check) + publish, over emulator-generated lines. Reported per
    stage in µs and as % of one core at 120 Hz.
 2. Latency against the firmware emulator on a pseudo-terminal (in a child process), through
-   the same serial reader the node uses (``slip_gripper_driver.core.transport.SerialLink``):
+   the same serial reader the node uses (``slip_cell_common.core.serial_transport.SerialLink``):
    arrival stamp (bytes returned by the read) → processed and published sample, and emulator
    write → published sample (includes the pty and the reader thread wake-up); plus the CPU
    share of the whole host process while streaming.
@@ -38,7 +38,7 @@ for _pkg in ('slip_velocity_sensor', 'slip_gripper_driver'):
     if _path not in sys.path:
         sys.path.insert(0, _path)
 
-from slip_gripper_driver.core.transport import SerialLink  # noqa: E402
+from slip_cell_common.core.serial_transport import SerialLink  # noqa: E402
 from slip_velocity_sensor.core.emulator import (EmulatorParams, FirmwareEmulator,  # noqa: E402
                                                 PtyEmulator, SineTwist)
 from slip_velocity_sensor.core.fusion import RigidBodyFusion  # noqa: E402

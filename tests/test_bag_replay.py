@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from slip_gripper_driver.common.bag_io import bag_info, read_messages, stamp_s
+from slip_cell_common.bag_io import bag_info, read_messages, stamp_s
 
 BAGS = Path(__file__).resolve().parents[1] / 'bags'
 SENSORS = ('/finger_1/ft/wrench', '/finger_2/ft/wrench', '/finger_1/slip/twist',
@@ -203,7 +203,7 @@ def test_hinge_bag_turns_the_gripper_around_the_object() -> None:
 
 
 def test_force_tracking_bag_metrics() -> None:
-    from slip_control.analyze import analyze_bag
+    from slip_bringup.analyze import analyze_bag
     metrics = analyze_bag(_bag('force_tracking'))
     step = metrics['force']['step']
     assert 0.0 < step['rise_time'] < 0.3

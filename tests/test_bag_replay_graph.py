@@ -13,7 +13,7 @@ from typing import Any
 
 import pytest
 
-from slip_gripper_driver.common.bag_io import read_messages, stamp_s
+from slip_cell_common.bag_io import read_messages, stamp_s
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
@@ -34,8 +34,8 @@ def test_estimator_node_reproduces_the_recorded_estimate_from_the_bag(
     from rclpy.node import Node
     from rclpy.parameter import Parameter
     from rosgraph_msgs.msg import Clock
-    from slip_gripper_driver.common.qos import LATCHED
-    from slip_gripper_driver.testing import NodeProcess, call_service, spin_until
+    from slip_cell_common.qos import LATCHED
+    from slip_cell_common.testing import NodeProcess, call_service, spin_until
     from slip_msgs.msg import ContactProperties
     from slip_msgs.srv import GetContactProperties, StartEstimation
 
@@ -68,7 +68,7 @@ def test_estimator_node_reproduces_the_recorded_estimate_from_the_bag(
             GetContactProperties, 'contact/get_properties'), GetContactProperties.Request(), 30.0)
         assert warm is not None, estimator.output()
         assert spin_until(executor, start_client.service_is_ready, 30.0)
-        replay = NodeProcess.python_module('slip_control.bag_cli', [
+        replay = NodeProcess.python_module('slip_bringup.bag_cli', [
             'replay', str(BAG), '--rate', '0.25', '--start-delay', '20',
             *sum((['--topic', t] for t in TOPICS), [])], tmp_path / 'replay.log', ros_env)
         phases = [(StartEstimation.Request.LINEAR, starts[0]),

@@ -13,7 +13,7 @@ pytestmark = pytest.mark.ros
 
 
 def test_write_read_info_and_csv(tmp_path: Path) -> None:
-    from slip_gripper_driver.common.bag_io import BagError, BagWriter, bag_info, export_csv, read_messages
+    from slip_cell_common.bag_io import BagError, BagWriter, bag_info, export_csv, read_messages
     bag = tmp_path / 'sample'
     write_sample_bag(bag)
     info = bag_info(bag)
@@ -40,8 +40,8 @@ def test_write_read_info_and_csv(tmp_path: Path) -> None:
 
 
 def test_missing_truncated_and_corrupt_bags_give_clear_errors(tmp_path: Path) -> None:
-    from slip_control.bag_cli import main as slip_bag
-    from slip_gripper_driver.common.bag_io import BagError, bag_info, read_messages
+    from slip_bringup.bag_cli import main as slip_bag
+    from slip_cell_common.bag_io import BagError, bag_info, read_messages
     with pytest.raises(BagError, match='does not exist'):
         bag_info(tmp_path / 'missing')
 
@@ -65,10 +65,10 @@ def test_record_in_process_then_replay_in_another_process(ros_context, ros_env,
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.node import Node
     from rosgraph_msgs.msg import Clock
-    from slip_gripper_driver.common.recorder import TopicRecorder
-    from slip_gripper_driver.common.bag_io import bag_info
-    from slip_gripper_driver.common.qos import COMMAND, LATCHED, SENSOR_PUB, SENSOR_SUB
-    from slip_gripper_driver.testing import NodeProcess, spin_until
+    from slip_cell_common.recorder import TopicRecorder
+    from slip_cell_common.bag_io import bag_info
+    from slip_cell_common.qos import COMMAND, LATCHED, SENSOR_PUB, SENSOR_SUB
+    from slip_cell_common.testing import NodeProcess, spin_until
     from slip_msgs.msg import ContactProperties, GraspForceCommand, GripperStatus
 
     node = Node('bag_probe', context=ros_context)
@@ -104,7 +104,7 @@ def test_record_in_process_then_replay_in_another_process(ros_context, ros_env,
     node.create_subscription(GraspForceCommand, 'gripper/grasp_force_cmd', got_cmd.append,
                              SENSOR_SUB)
     node.create_subscription(Clock, '/clock', clocks.append, 10)
-    proc = NodeProcess.python_module('slip_control.bag_cli', [
+    proc = NodeProcess.python_module('slip_bringup.bag_cli', [
         'replay', str(bag), '--rate', '1.0', '--start-delay', '15', '--topic', 'gripper/*'], tmp_path / 'replay.log', ros_env)
     try:
         spin_until(executor, lambda: not proc.running(), 30.0)

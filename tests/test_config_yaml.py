@@ -16,7 +16,7 @@ from typing import Any
 import pytest
 import yaml
 
-from slip_gripper_driver.core.param_schema import iter_specs
+from slip_cell_common.core.param_schema import iter_specs
 
 SRC = Path(__file__).resolve().parents[1] / 'src'
 CELL_YAML = SRC / 'slip_gripper_driver' / 'config' / 'cell.yaml'
@@ -118,7 +118,7 @@ def test_other_node_yaml_matches_declared_parameters(entry: tuple) -> None:
 
 
 def test_cell_yaml_frames_match_frame_params() -> None:
-    from slip_gripper_driver.core.frames import FrameParams
+    from slip_cell_common.core.frames import FrameParams
     shared = _yaml_params(CELL_YAML, '/**')
     for f in fields(FrameParams):
         assert _same(shared[f'frames.{f.name}'], getattr(FrameParams(), f.name)), f.name
@@ -140,7 +140,7 @@ def test_launch_files_compile(launch: Path, tmp_path: Path) -> None:
     py_compile.compile(str(launch), cfile=str(tmp_path / 'launch.pyc'), doraise=True)
 
 
-@pytest.mark.parametrize('graph', sorted((SRC / 'slip_control' / 'config').glob('*.graph.yaml')),
+@pytest.mark.parametrize('graph', sorted((SRC / 'slip_bringup' / 'config').glob('*.graph.yaml')),
                          ids=lambda p: p.name)
 def test_graph_files_name_existing_parameter_files(graph: Path) -> None:
     data = yaml.safe_load(graph.read_text())

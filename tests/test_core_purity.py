@@ -36,3 +36,50 @@ def test_checker_catches_a_ros_import(tmp_path: Path) -> None:
     probe = tmp_path / 'probe.py'
     probe.write_text('import numpy\nfrom rclpy.node import Node\n')
     assert _imported_roots(probe) & BANNED == {'rclpy'}
+
+
+# --- layer table (issue 14) --------------------------------------------------------------------
+
+#: Which project packages each package may import. The direction is
+#: slip_msgs ← slip_cell_common ← {driver, velocity sensor, control};
+#: {driver, velocity sensor} ← friction_models (the simulated cell runs the drivers' host code);
+#: bring-up (graph runner, demo, bag tools, evaluation) on top of everything.
+PROJECT_PACKAGES = {'slip_msgs', 'slip_cell_common', 'slip_gripper_driver',
+                    'slip_velocity_sensor', 'slip_control', 'friction_models', 'slip_bringup'}
+LAYERS = {
+    'slip_cell_common': {'slip_msgs'},
+    'slip_gripper_driver': {'slip_msgs', 'slip_cell_common'},
+    'slip_velocity_sensor': {'slip_msgs', 'slip_cell_common'},
+    'slip_control': {'slip_msgs', 'slip_cell_common'},
+    'friction_models': {'slip_msgs', 'slip_cell_common', 'slip_gripper_driver',
+                        'slip_velocity_sensor'},
+    'slip_bringup': PROJECT_PACKAGES - {'slip_bringup'},
+}
+
+
+def layer_violations(package: str, module_dir: Path) -> dict[str, set[str]]:
+    """Modules of ``package`` that import a project package above or beside its layer."""
+    allowed = LAYERS[package] | {package}
+    bad: dict[str, set[str]] = {}
+    for path in sorted(module_dir.rglob('*.py')):
+        wrong = (_imported_roots(path) & PROJECT_PACKAGES) - allowed
+        if wrong:
+            bad[str(path.relative_to(module_dir.parent))] = wrong
+    return bad
+
+
+def test_layer_table_names_every_python_package() -> None:
+    assert set(LAYERS) == {p.parent.name for p in SRC.glob('*/setup.py')}
+
+
+@pytest.mark.parametrize('package', sorted(LAYERS))
+def test_packages_import_only_lower_layers(package: str) -> None:
+    bad = layer_violations(package, SRC / package / package)
+    assert not bad, f'{package} imports outside its layer: {bad}'
+
+
+def test_layer_check_catches_an_upward_import(tmp_path: Path) -> None:
+    module_dir = tmp_path / 'slip_control'
+    module_dir.mkdir()
+    (module_dir / 'x.py').write_text('from friction_models.core.plant import Plant\n')
+    assert layer_violations('slip_control', module_dir) == {'slip_control/x.py': {'friction_models'}}

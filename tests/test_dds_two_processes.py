@@ -12,8 +12,8 @@ pytestmark = pytest.mark.ros
 def test_custom_message_and_service_across_processes(ros_context, ros_env, tmp_path: Path) -> None:
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.node import Node
-    from slip_gripper_driver.common.qos import SENSOR_SUB
-    from slip_gripper_driver.testing import NodeProcess, call_service, spin_until
+    from slip_cell_common.qos import SENSOR_SUB
+    from slip_cell_common.testing import NodeProcess, call_service, spin_until
     from slip_msgs.msg import GraspForceCommand
     from slip_msgs.srv import SetSlipMode
 

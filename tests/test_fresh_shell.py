@@ -20,8 +20,8 @@ ROOT = Path(__file__).resolve().parents[1]
 def test_installed_console_script_runs_from_a_fresh_shell(ros_context, tmp_path: Path) -> None:
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.node import Node
-    from slip_gripper_driver.common.qos import SENSOR_SUB
-    from slip_gripper_driver.testing import NodeProcess, spin_until
+    from slip_cell_common.qos import SENSOR_SUB
+    from slip_cell_common.testing import NodeProcess, spin_until
     from slip_msgs.msg import GripperStatus
 
     exe = ROOT / 'install' / 'friction_models' / 'lib' / 'friction_models' / 'sim_gripper'

@@ -10,8 +10,8 @@ from typing import Any
 import pytest
 import yaml
 
-from slip_gripper_driver.core.frames import FrameParams
-from slip_gripper_driver.core.param_schema import flatten, from_flat, specs
+from slip_cell_common.core.frames import FrameParams
+from slip_cell_common.core.param_schema import flatten, from_flat, specs
 from slip_gripper_driver.node_params import GripperDriverParams, NetFTDriverParams
 
 PKG = Path(__file__).resolve().parents[1] / 'src' / 'slip_gripper_driver'
@@ -78,7 +78,7 @@ def test_launch_files_compile(tmp_path: Path) -> None:
 
 
 def test_console_scripts_are_installed() -> None:
-    from slip_gripper_driver.testing import workspace_root
+    from slip_cell_common.testing import workspace_root
     lib = workspace_root() / 'install' / 'slip_gripper_driver' / 'lib' / 'slip_gripper_driver'
     missing = [s for s in SCRIPTS if not (lib / s).is_file()]
     assert not missing, f'not installed (run make setup): {missing}'

@@ -16,7 +16,7 @@ TAU_S = 0.01  # first-order lag of the synthetic "gripper": f_-3dB = 1/(2π τ) 
 
 
 def _write_bag(path: Path, profile: ForceTrackingProfile, t0: float) -> None:
-    from slip_gripper_driver.common.bag_io import BagWriter
+    from slip_cell_common.bag_io import BagWriter
     writer = BagWriter(path)
     store = writer.typestore
     Time = store.types['builtin_interfaces/msg/Time']
@@ -76,7 +76,7 @@ def test_run_publishes_the_profile_at_500_hz_with_source_test_and_records(
     from rclpy.qos import QoSProfile
     from slip_msgs.msg import GraspForceCommand
 
-    from slip_gripper_driver.common.bag_io import read_messages
+    from slip_cell_common.bag_io import read_messages
     from slip_gripper_driver.force_tracking_test import COMMAND_TOPIC, run_profile
     node = Node('force_tracking_test', context=ros_context)
     sink = Node('fake_driver', context=ros_context)  # stands in for gripper_driver

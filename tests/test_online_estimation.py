@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: Apache-2.0
 """Issue 7 item 1, online mode: the ONLINE estimator (control_and_estimation §3.6) corrects a
 wrong contact estimate while the slip controllers slide and turn the object on the simulated
-cell (`slip_control.core.sim_evaluation.online_refinement`: real cores, sim time, no DDS).
+cell (`slip_bringup.core.sim_evaluation.online_refinement`: real cores, sim time, no DDS).
 
 Each case starts the estimator *and* the controllers from the simulator's true ``μ_c`` and
 ``r`` scaled by 0.8 or 1.2 (20 % off on both fingers), runs ONLINE during a LINEAR 2 cm / 2 s
@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import pytest
 
-from slip_control.core.sim_evaluation import (ONLINE_START_SCALES, REFERENCE_PRESETS,
+from slip_bringup.core.sim_evaluation import (ONLINE_START_SCALES, REFERENCE_PRESETS,
                                               OnlineOutcome, format_online_table,
                                               online_refinement)
 

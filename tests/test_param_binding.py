@@ -30,7 +30,7 @@ def _node(ctx, overrides):  # noqa: ANN001, ANN202
 
 def test_overrides_validation_and_swap(ros_context) -> None:
     from rclpy.parameter import Parameter
-    from slip_gripper_driver.common.params import ParameterBinding
+    from slip_cell_common.param_binding import ParameterBinding
     node = _node(ros_context, {'port': 'loop://', 'loop.kp': 3})  # int given for a float
     binding = ParameterBinding(node, Cfg)
     seen: list[Cfg] = []
@@ -53,8 +53,8 @@ def test_overrides_validation_and_swap(ros_context) -> None:
 
 
 def test_missing_required_and_bad_values_fail_load_with_every_problem(ros_context) -> None:
-    from slip_gripper_driver.common.params import ParameterBinding
-    from slip_gripper_driver.core.param_schema import ParameterError
+    from slip_cell_common.param_binding import ParameterBinding
+    from slip_cell_common.core.param_schema import ParameterError
     node = _node(ros_context, {'loop.kp': -1.0, 'loop.measurement': 'median'})
     binding = ParameterBinding(node, Cfg)
     with pytest.raises(ParameterError) as err:

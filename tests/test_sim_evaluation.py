@@ -2,7 +2,7 @@
 """Issue 7 item 4, in-process half: the contact estimator and the four slip controllers on the
 simulated cell, judged by physical outcomes from the simulator truth.
 
-Everything runs through `slip_control.core.sim_evaluation` (real cores as harness agents, sim
+Everything runs through `slip_bringup.core.sim_evaluation` (real cores as harness agents, sim
 time, no DDS). One full evaluation per reference preset is shared by the tests of
 this module; the fault tests build their own cells.
 
@@ -31,12 +31,12 @@ import math
 
 import pytest
 
-from slip_control import evaluate_cli
+from slip_bringup import evaluate_cli
 from slip_control.core.contact import ContactSource
 from slip_control.core.controllers import SlipMode
 from slip_control.core.estimator import EstimationPhase
 from slip_control.core.mode_switch import ModeRequest
-from slip_control.core.sim_evaluation import (LINEAR_CASES, REFERENCE_PRESETS, ROTATIONAL_CASES,
+from slip_bringup.core.sim_evaluation import (LINEAR_CASES, REFERENCE_PRESETS, ROTATIONAL_CASES,
                                               ControllerAgent, EstimatorAgent, EvalSettings,
                                               PresetEvaluation, estimate_without_contact,
                                               evaluate_preset, format_table, linear_slip,

@@ -29,7 +29,7 @@ def start_sim(tmp_path: Path, env: dict[str, str], *extra: str, name: str = 'sim
         path.write_text(yaml.safe_dump({'sim_gripper': {'ros__parameters': overrides}}))
         extra = ('--params-file', str(path), *extra)
     from ament_index_python.packages import get_package_prefix
-    from slip_gripper_driver.testing import NodeProcess
+    from slip_cell_common.testing import NodeProcess
     exe = Path(get_package_prefix('friction_models')) / 'lib' / 'friction_models' / 'sim_gripper'
     return NodeProcess([str(exe), '--ros-args',
                         '--params-file', _share('slip_gripper_driver', 'config/cell.yaml'),
@@ -46,7 +46,7 @@ class Probe:
         from rclpy.node import Node
         from rclpy.parameter import Parameter
         from sensor_msgs.msg import JointState
-        from slip_gripper_driver.common.qos import LATCHED, SENSOR_PUB
+        from slip_cell_common.qos import LATCHED, SENSOR_PUB
         from slip_msgs.msg import (ContactProperties, GripperStatus, MotorCommand, PlanarSlip,
                                    SimState, TransformArray)
         self.node = Node('sim_probe', context=ctx, parameter_overrides=[
@@ -72,11 +72,11 @@ class Probe:
             self.node.create_subscription(kind, topic, self.msgs[topic].append, qos)
 
     def spin_until(self, predicate: Any, timeout_s: float) -> bool:
-        from slip_gripper_driver.testing import spin_until
+        from slip_cell_common.testing import spin_until
         return spin_until(self.executor, predicate, timeout_s)
 
     def call(self, srv: Any, name: str, req: Any, timeout_s: float = 15.0) -> Any:
-        from slip_gripper_driver.testing import call_service
+        from slip_cell_common.testing import call_service
         return call_service(self.executor, self.node.create_client(srv, name), req, timeout_s)
 
     def close(self) -> None:
@@ -94,7 +94,7 @@ def _rate(msgs: list[Any], t0: float, t1: float) -> float:
 
 def test_sim_speaks_the_driver_interface_at_real_rates(ros_context, ros_env,
                                                        tmp_path: Path) -> None:
-    from slip_gripper_driver.common.qos import COMMAND
+    from slip_cell_common.qos import COMMAND
     from slip_msgs.msg import GraspForceCommand
     from std_srvs.srv import Trigger
     sim = start_sim(tmp_path, ros_env)
@@ -155,7 +155,7 @@ def test_sim_speaks_the_driver_interface_at_real_rates(ros_context, ros_env,
 
 def test_bad_input_is_refused_with_clear_messages(ros_context, ros_env, tmp_path: Path) -> None:
     from lifecycle_msgs.srv import GetState
-    from slip_gripper_driver.common.qos import COMMAND
+    from slip_cell_common.qos import COMMAND
     from slip_msgs.msg import GraspForceCommand
     from slip_msgs.srv import MoveGripper, ResetScene
 

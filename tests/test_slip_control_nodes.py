@@ -20,8 +20,8 @@ def test_three_nodes_as_processes(ros_context, ros_env, tmp_path: Path) -> None:
     from rclpy.action import ActionClient
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.node import Node
-    from slip_gripper_driver.common.qos import LATCHED, SENSOR_SUB
-    from slip_gripper_driver.testing import NodeProcess, call_service, spin_until
+    from slip_cell_common.qos import LATCHED, SENSOR_SUB
+    from slip_cell_common.testing import NodeProcess, call_service, spin_until
     from slip_msgs.action import RunExperiment
     from slip_msgs.msg import ContactProperties, GraspForceCommand, SlipControllerState
     from slip_msgs.srv import SetSlipMode, StartEstimation

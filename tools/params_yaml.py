@@ -15,7 +15,7 @@ import importlib
 import math
 import sys
 
-from slip_gripper_driver.core.param_schema import iter_specs
+from slip_cell_common.core.param_schema import iter_specs
 
 
 def _value(v: object) -> str:

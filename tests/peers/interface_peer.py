@@ -9,8 +9,8 @@ import argparse
 import sys
 
 from rclpy.node import Node
-from slip_gripper_driver.common.node_main import run_node
-from slip_gripper_driver.common.qos import COMMAND
+from slip_cell_common.node_main import run_node
+from slip_cell_common.qos import COMMAND
 from slip_msgs.msg import GraspForceCommand
 from slip_msgs.srv import SetSlipMode
 

@@ -14,7 +14,7 @@ def status_message(k: int):  # noqa: ANN202
 
 def write_sample_bag(path: Path, n: int = 50) -> None:
     from rclpy.serialization import serialize_message
-    from slip_gripper_driver.common.bag_io import BagWriter
+    from slip_cell_common.bag_io import BagWriter
     from slip_msgs.msg import ContactProperties, GraspForceCommand
     with BagWriter(path) as bag:
         bag.add_topic('/gripper/status', 'slip_msgs/msg/GripperStatus')

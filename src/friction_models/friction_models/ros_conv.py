@@ -12,15 +12,15 @@ from friction_models.core.presets import ContactPreset
 from friction_models.core.sensors import FtSample, TelemetrySample
 from friction_models.core.sim_cell import SimState as CoreSimState
 from friction_models.core.sim_cell import SimStatus
-from slip_gripper_driver.core.frames import Transform
-from slip_gripper_driver.ros_conv import to_time  # noqa: F401 (used here and by the node)
+from slip_cell_common.core.frames import Transform
+from slip_cell_common.time_conv import seconds_to_stamp
 from slip_velocity_sensor.core.session import Sample
 
 
 def wrench_msg(sample: FtSample, values: tuple[float, ...], frame_id: str) -> WrenchStamped:
     """An F/T record (6 values, sensor frame) as WrenchStamped stamped at acquisition."""
     msg = WrenchStamped()
-    msg.header.stamp = to_time(sample.stamp)
+    msg.header.stamp = seconds_to_stamp(sample.stamp)
     msg.header.frame_id = frame_id
     f, tq = msg.wrench.force, msg.wrench.torque
     f.x, f.y, f.z, tq.x, tq.y, tq.z = (float(v) for v in values)
@@ -30,7 +30,7 @@ def wrench_msg(sample: FtSample, values: tuple[float, ...], frame_id: str) -> Wr
 def twist_msg(sample: Sample, frame_id: str) -> TwistStamped:
     """A velocity-sensor sample (pad frame, SI) as TwistStamped."""
     msg = TwistStamped()
-    msg.header.stamp = to_time(sample.stamp)
+    msg.header.stamp = seconds_to_stamp(sample.stamp)
     msg.header.frame_id = frame_id
     msg.twist.linear.x, msg.twist.linear.y = float(sample.vx), float(sample.vy)
     msg.twist.angular.z = float(sample.omega)
@@ -44,7 +44,7 @@ def planar_slip_msg(sample: Sample, frame_id: str) -> PlanarSlip:
                      chip_mode=max(0, int(sample.chip_mode)),
                      excluded_chip=int(sample.excluded_chip),
                      residual_ratio=float(sample.residual_ratio), valid=bool(sample.valid))
-    msg.header.stamp = to_time(sample.stamp)
+    msg.header.stamp = seconds_to_stamp(sample.stamp)
     msg.header.frame_id = frame_id
     return msg
 
@@ -56,7 +56,7 @@ def motor_command_msg(tel: TelemetrySample) -> MotorCommand:
                        error=float(tel.error), integral=float(tel.integral),
                        gain_scale=float(tel.gain_scale), closed_loop=bool(tel.closed_loop),
                        bypass_reason=int(tel.bypass_reason))
-    msg.header.stamp = to_time(tel.stamp)
+    msg.header.stamp = seconds_to_stamp(tel.stamp)
     return msg
 
 
@@ -72,7 +72,7 @@ def gripper_status_msg(tel: TelemetrySample, status: SimStatus, line_count: int,
         ft_biased=bool(status.ft_biased), ft_fresh=ft_fresh, link_ok=True,
         in_contact=bool(status.in_contact), command_expired=bool(status.command_expired),
         armed=True, safe_state=False)
-    msg.header.stamp = to_time(tel.stamp)
+    msg.header.stamp = seconds_to_stamp(tel.stamp)
     return msg
 
 
@@ -83,7 +83,7 @@ def joint_state_msg(tel: TelemetrySample, status: SimStatus, prefix: str) -> Joi
     msg = JointState(name=[f'{prefix}finger_1_joint', f'{prefix}finger_2_joint'],
                      position=[half, half], velocity=[rate, rate],
                      effort=[float(tel.measured_force)] * 2)
-    msg.header.stamp = to_time(tel.stamp)
+    msg.header.stamp = seconds_to_stamp(tel.stamp)
     return msg
 
 
@@ -92,7 +92,7 @@ def transform_array_msg(transforms: list[Transform], t: float) -> TransformArray
     out = TransformArray()
     for tr in transforms:
         msg = TransformStamped()
-        msg.header.stamp = to_time(t)
+        msg.header.stamp = seconds_to_stamp(t)
         msg.header.frame_id = tr.parent
         msg.child_frame_id = tr.child
         v, q = msg.transform.translation, msg.transform.rotation
@@ -111,7 +111,7 @@ def sim_state_msg(state: CoreSimState, frame_id: str, realtime_factor: float) ->
                    realtime_factor=float(realtime_factor), object_in_grasp=state.in_grasp,
                    object_on_table=state.on_table, object_dropped=state.dropped,
                    arm_moving=state.arm_moving, preset=state.preset)
-    msg.header.stamp = to_time(state.stamp)
+    msg.header.stamp = seconds_to_stamp(state.stamp)
     msg.header.frame_id = frame_id
     return msg
 
@@ -119,7 +119,7 @@ def sim_state_msg(state: CoreSimState, frame_id: str, realtime_factor: float) ->
 def object_pose_msg(state: CoreSimState, frame_id: str) -> PoseStamped:
     """Grasp-relative object pose in ``gripper_middle`` (planar: z rotation only)."""
     msg = PoseStamped()
-    msg.header.stamp = to_time(state.stamp)
+    msg.header.stamp = seconds_to_stamp(state.stamp)
     msg.header.frame_id = frame_id
     msg.pose.position.x, msg.pose.position.y = state.x, state.y
     msg.pose.orientation.z = math.sin(state.theta / 2.0)
@@ -130,7 +130,7 @@ def object_pose_msg(state: CoreSimState, frame_id: str) -> PoseStamped:
 def object_twist_msg(state: CoreSimState, frame_id: str) -> TwistStamped:
     """Object twist relative to the gripper, ``gripper_middle`` axes."""
     msg = TwistStamped()
-    msg.header.stamp = to_time(state.stamp)
+    msg.header.stamp = seconds_to_stamp(state.stamp)
     msg.header.frame_id = frame_id
     msg.twist.linear.x, msg.twist.linear.y = state.vx, state.vy
     msg.twist.angular.z = state.omega
@@ -150,5 +150,5 @@ def true_contact_msg(contacts: tuple[ContactPreset, ContactPreset], preset: str,
                             finger_2=_finger_truth(contacts[1]),
                             source=ContactProperties.SOURCE_GROUND_TRUTH, preset_name=preset,
                             valid=True)
-    msg.header.stamp = to_time(t)
+    msg.header.stamp = seconds_to_stamp(t)
     return msg

@@ -40,14 +40,14 @@ from friction_models.core import NATIVE_STATUS
 from friction_models.core.pacing import RealTimePacer
 from friction_models.core.presets import PresetError, load_presets, reference_presets
 from friction_models.core.sim_cell import SimCell, SimParams
-from slip_gripper_driver.common.diagnostics import DiagnosticsPublisher
-from slip_gripper_driver.common.node_main import run_node
-from slip_gripper_driver.common.params import ParameterBinding
-from slip_gripper_driver.common.qos import (CLOCK, COMMAND, LATCHED, QUIET_PUB, SENSOR_PUB,
+from slip_cell_common.diagnostics import DiagnosticsPublisher
+from slip_cell_common.node_main import run_node
+from slip_cell_common.param_binding import ParameterBinding
+from slip_cell_common.qos import (CLOCK, COMMAND, LATCHED, QUIET_PUB, SENSOR_PUB,
                                             overridable)
-from slip_gripper_driver.core.frames import finger_transforms, static_transforms
-from slip_gripper_driver.core.monitors import Level, Report
-from slip_gripper_driver.core.param_schema import ParameterError
+from slip_cell_common.core.frames import finger_transforms, static_transforms
+from slip_cell_common.core.monitors import Level, Report
+from slip_cell_common.core.param_schema import ParameterError
 from slip_velocity_sensor.core.protocol import VelocityLine
 from slip_velocity_sensor.core.session import SensorSession, SessionParams
 
@@ -312,7 +312,7 @@ class SimGripperNode(LifecycleNode):
                 self._publish_events(events)
                 self._publish_ground_truth()
                 if 'clock' in self._pubs:   # _drives_own_clock implies a /clock publisher
-                    stamp = ros_conv.to_time(cell.t)
+                    stamp = ros_conv.seconds_to_stamp(cell.t)
                     self._pubs['clock'].publish(Clock(clock=stamp))
                     if self._drives_own_clock:
                         self.get_clock().set_ros_time_override(Time.from_msg(stamp))

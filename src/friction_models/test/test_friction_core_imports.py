@@ -10,7 +10,7 @@ import pytest
 
 CORE = Path(__file__).resolve().parents[1] / 'friction_models' / 'core'
 THIRD_PARTY = {'numpy', 'scipy', 'yaml', 'filterpy'}
-PROJECT = {'slip_gripper_driver', 'slip_velocity_sensor', 'friction_models'}   # cores only
+PROJECT = {'slip_cell_common', 'slip_gripper_driver', 'slip_velocity_sensor', 'friction_models'}   # cores only
 
 
 def imported_modules(tree: ast.AST) -> set[str]:
@@ -41,6 +41,6 @@ def test_core_imports_and_no_print(path: Path) -> None:
 
 
 def test_checker_rejects_ros_and_node_modules() -> None:
-    tree = ast.parse('import numpy\nimport rclpy\nfrom slip_gripper_driver.common import x\n'
-                     'from slip_gripper_driver.core.frames import y\n')
-    assert disallowed(imported_modules(tree)) == {'rclpy', 'slip_gripper_driver.common'}
+    tree = ast.parse('import numpy\nimport rclpy\nfrom slip_cell_common import x\n'
+                     'from slip_cell_common.core.frames import y\n')
+    assert disallowed(imported_modules(tree)) == {'rclpy', 'slip_cell_common'}

@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from slip_gripper_driver.core.force_control import BypassReason
-from slip_gripper_driver.core.frames import FrameParams, planar_to_middle
-from slip_gripper_driver.core.param_schema import ParameterError, flatten, from_flat
+from slip_cell_common.core.frames import FrameParams, planar_to_middle
+from slip_cell_common.core.param_schema import ParameterError, flatten, from_flat
 from slip_gripper_driver.core.protocol import encode_force_command
 from slip_velocity_sensor.core.chip_model import ChipModelParams, CountQuantizer
 from slip_velocity_sensor.core.fusion import FusionParams, RigidBodyFusion

@@ -6,7 +6,7 @@ import math
 
 import pytest
 
-from slip_gripper_driver.core.frames import FrameParams, planar_to_middle
+from slip_cell_common.core.frames import FrameParams, planar_to_middle
 
 from friction_models.core.harness import (Harness, HarnessError, Recorder,
                                           default_motion_time, grasp_and_hold)

@@ -172,7 +172,7 @@ def test_object_slides_off_the_face_and_drops_to_the_table() -> None:
 def test_ft_measures_the_friction_that_holds_the_object() -> None:
     # Held in the air: the pads carry the weight, F/T (force on the pad) points down.
     h = _held(1e-3)
-    from slip_gripper_driver.core.frames import FrameParams, planar_to_middle
+    from slip_cell_common.core.frames import FrameParams, planar_to_middle
     frames = FrameParams()
     events = h.cell.advance(h.t + 0.2)
     sums = {1: [0.0, 0.0, 0.0], 2: [0.0, 0.0, 0.0]}

@@ -60,7 +60,7 @@ from slip_msgs.msg import SimState
 from slip_msgs.srv import MoveGripper, ResetScene
 
 from slip_control.core.runner_sequences import CallResult, CallReturn
-from slip_gripper_driver.common.qos import SENSOR_SUB
+from slip_cell_common.qos import SENSOR_SUB
 
 
 class ArmUnavailableError(RuntimeError):

@@ -35,14 +35,14 @@ from slip_control.core.estimator import (ContactEstimator, EstimationPhase, Esti
                                          start_precheck)
 from slip_control.core.params import ContactEstimatorParams
 from slip_control.core.signals import SensorSnapshot
-from slip_control.ros_conv import (ns_to_stamp, properties_to_msg, twist_from_msg,
+from slip_control.ros_conv import (nanoseconds_to_stamp, properties_to_msg, twist_from_msg, 
                                    wrench_from_msg)
-from slip_gripper_driver.common.diagnostics import DiagnosticsPublisher
-from slip_gripper_driver.common.node_main import run_node
-from slip_gripper_driver.common.params import ParameterBinding
-from slip_gripper_driver.common.qos import LATCHED, QUIET_SUB, SENSOR_SUB, overridable
-from slip_gripper_driver.core.monitors import Level, Report
-from slip_gripper_driver.core.param_schema import ParameterError
+from slip_cell_common.diagnostics import DiagnosticsPublisher
+from slip_cell_common.node_main import run_node
+from slip_cell_common.param_binding import ParameterBinding
+from slip_cell_common.qos import LATCHED, QUIET_SUB, SENSOR_SUB, overridable
+from slip_cell_common.core.monitors import Level, Report
+from slip_cell_common.core.param_schema import ParameterError
 
 #: Period of the timer that ends phases whose window passed without samples [s, node clock].
 POLL_PERIOD_S = 0.02
@@ -209,7 +209,7 @@ class ContactEstimatorNode(Node):
 
     def _publish(self) -> None:
         props = self._est.properties
-        self._pub.publish(properties_to_msg(props, ns_to_stamp(
+        self._pub.publish(properties_to_msg(props, nanoseconds_to_stamp(
             self.get_clock().now().nanoseconds)))
         self._published += 1
         if self._published > 1:

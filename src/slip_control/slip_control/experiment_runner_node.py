@@ -56,15 +56,15 @@ from slip_control.core.params import ExperimentRunnerParams
 from slip_control.core.runner_sequences import (RECORDING_MODES, CallResult, CallReturn,
                                                 CellFlags, PoseOffset, RunnerProgress,
                                                 SequenceRunner, build_sequence)
-from slip_control.ros_conv import grasp_force_command, ns_to_stamp, properties_from_msg, \
+from slip_control.ros_conv import grasp_force_command, nanoseconds_to_stamp, properties_from_msg, \
     properties_to_msg
-from slip_gripper_driver.common.diagnostics import DiagnosticsPublisher
-from slip_gripper_driver.common.node_main import run_node
-from slip_gripper_driver.common.params import ParameterBinding
-from slip_gripper_driver.common.qos import COMMAND, overridable
-from slip_gripper_driver.common.recorder import TopicRecorder
-from slip_gripper_driver.core.monitors import Level, Report
-from slip_gripper_driver.core.param_schema import ParameterError
+from slip_cell_common.diagnostics import DiagnosticsPublisher
+from slip_cell_common.node_main import run_node
+from slip_cell_common.param_binding import ParameterBinding
+from slip_cell_common.qos import COMMAND, overridable
+from slip_cell_common.recorder import TopicRecorder
+from slip_cell_common.core.monitors import Level, Report
+from slip_cell_common.core.param_schema import ParameterError
 
 #: Poll period of a running sequence [s, steady clock].
 POLL_PERIOD_S = 0.01
@@ -101,7 +101,7 @@ class RosCell:
     def command_force(self, force: float, t: float) -> CallReturn:
         """Publish a grasp-force command [N] valid until replaced (``timeout = 0``)."""
         self._cmd.publish(grasp_force_command(
-            force, 0.0, ns_to_stamp(self._node.get_clock().now().nanoseconds),
+            force, 0.0, nanoseconds_to_stamp(self._node.get_clock().now().nanoseconds),
             GraspForceCommand.SOURCE_EXPERIMENT_RUNNER))
         return CallResult(True, f'{force:.2f} N commanded')
 

@@ -21,15 +21,8 @@ from slip_control.core.contact import ContactProperties, ContactSource, FingerCo
 from slip_control.core.controllers import SlipResult, TrackingRecord
 from slip_control.core.mode_switch import ModeRequest
 from slip_control.core.signals import TwistSample, WrenchSample
-from slip_gripper_driver.ros_conv import from_time as stamp_to_s  # noqa: F401 (re-export)
-from slip_gripper_driver.ros_conv import to_time as s_to_stamp  # noqa: F401 (re-export)
+from slip_cell_common.time_conv import nanoseconds_to_stamp, seconds_to_stamp, stamp_to_seconds
 
-_NS = 1_000_000_000
-
-
-def ns_to_stamp(ns: int) -> Time:
-    """Integer nanoseconds (``Clock.now().nanoseconds``) → ``builtin_interfaces/Time``."""
-    return Time(sec=ns // _NS, nanosec=ns % _NS)
 
 
 # --- sensors ----------------------------------------------------------------------------------
@@ -37,7 +30,7 @@ def ns_to_stamp(ns: int) -> Time:
 def wrench_from_msg(msg: WrenchStamped) -> WrenchSample:
     """Bias-removed wrench of one finger (frame ``ft_sensor_k``; N, N·m; acquisition stamp)."""
     f, tq = msg.wrench.force, msg.wrench.torque
-    return WrenchSample(f.x, f.y, f.z, tq.z, stamp_to_s(msg.header.stamp))
+    return WrenchSample(f.x, f.y, f.z, tq.z, stamp_to_seconds(msg.header.stamp))
 
 
 def twist_from_msg(msg: TwistStamped) -> TwistSample:
@@ -47,13 +40,13 @@ def twist_from_msg(msg: TwistStamped) -> TwistSample:
     so the controllers treat it as stale instead of computing with it.
     """
     v, w = msg.twist.linear, msg.twist.angular
-    return TwistSample(v.x, v.y, w.z, stamp_to_s(msg.header.stamp))
+    return TwistSample(v.x, v.y, w.z, stamp_to_seconds(msg.header.stamp))
 
 
 def wrench_to_msg(sample: WrenchSample, frame_id: str) -> WrenchStamped:
     """A core wrench sample as ``WrenchStamped`` (tests, benchmarks, replays)."""
     msg = WrenchStamped()
-    msg.header.stamp = s_to_stamp(sample.stamp)
+    msg.header.stamp = seconds_to_stamp(sample.stamp)
     msg.header.frame_id = frame_id
     msg.wrench.force.x, msg.wrench.force.y, msg.wrench.force.z = sample.fx, sample.fy, sample.fz
     msg.wrench.torque.z = sample.tz
@@ -63,7 +56,7 @@ def wrench_to_msg(sample: WrenchSample, frame_id: str) -> WrenchStamped:
 def twist_to_msg(sample: TwistSample, frame_id: str) -> TwistStamped:
     """A core twist sample as ``TwistStamped`` (tests, benchmarks, replays)."""
     msg = TwistStamped()
-    msg.header.stamp = s_to_stamp(sample.stamp)
+    msg.header.stamp = seconds_to_stamp(sample.stamp)
     msg.header.frame_id = frame_id
     msg.twist.linear.x, msg.twist.linear.y = sample.vx, sample.vy
     msg.twist.angular.z = sample.omega
@@ -149,7 +142,7 @@ def grasp_force_command(force: float, timeout: float, stamp: Time,
 def tracking_to_msg(rec: TrackingRecord) -> SlipTracking:
     """Core tracking row → ``slip_msgs/SlipTracking`` (stamp = triggering twist stamp)."""
     msg = SlipTracking()
-    msg.header.stamp = s_to_stamp(rec.stamp)
+    msg.header.stamp = seconds_to_stamp(rec.stamp)
     msg.mode = int(rec.mode)
     msg.ref_pos, msg.ref_vel = rec.ref_pos, rec.ref_vel
     msg.meas_pos, msg.meas_vel = rec.meas_pos, rec.meas_vel

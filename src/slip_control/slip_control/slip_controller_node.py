@@ -59,16 +59,16 @@ from slip_control.core.mode_switch import (ModeRequest, build_controller, check_
 from slip_control.core.params import SlipControllerParams
 from slip_control.core.signals import (InputStatus, SensorSnapshot, StaleDebounce,
                                       assess_inputs)
-from slip_control.ros_conv import (controller_state, fill_slip_result, grasp_force_command,
-                                   mode_request, properties_from_msg, s_to_stamp,
+from slip_control.ros_conv import (controller_state, fill_slip_result, grasp_force_command, 
+                                   mode_request, properties_from_msg, seconds_to_stamp,
                                    tracking_to_msg, twist_from_msg, wrench_from_msg)
-from slip_gripper_driver.common.diagnostics import DiagnosticsPublisher
-from slip_gripper_driver.common.node_main import run_node
-from slip_gripper_driver.common.params import ParameterBinding
-from slip_gripper_driver.common.qos import (COMMAND, LATCHED, QUIET_PUB, QUIET_SUB, SENSOR_PUB,
+from slip_cell_common.diagnostics import DiagnosticsPublisher
+from slip_cell_common.node_main import run_node
+from slip_cell_common.param_binding import ParameterBinding
+from slip_cell_common.qos import (COMMAND, LATCHED, QUIET_PUB, QUIET_SUB, SENSOR_PUB,
                                             SENSOR_SUB, overridable)
-from slip_gripper_driver.core.monitors import Level, Report
-from slip_gripper_driver.core.param_schema import ParameterError
+from slip_cell_common.core.monitors import Level, Report
+from slip_cell_common.core.param_schema import ParameterError
 
 #: Watchdog period [s, node clock]: stale inputs are acted on at most this late.
 WATCHDOG_PERIOD_S = 0.01
@@ -268,7 +268,7 @@ class SlipControllerNode(Node):
 
     def _command(self, force: float, timeout: float, t: float) -> None:
         self._cmd_pub.publish(grasp_force_command(
-            force, timeout, s_to_stamp(t), GraspForceCommand.SOURCE_SLIP_CONTROLLER))
+            force, timeout, seconds_to_stamp(t), GraspForceCommand.SOURCE_SLIP_CONTROLLER))
         self._commands += 1
 
     def _switch(self, request: ModeRequest, origin: str) -> tuple[bool, str]:
@@ -369,7 +369,7 @@ class SlipControllerNode(Node):
         if reason:
             self._reason = reason
         self._state_pub.publish(controller_state(
-            s_to_stamp(t), key[0], key[1], key[2], key[3], key[4], key[5], self._reason))
+            seconds_to_stamp(t), key[0], key[1], key[2], key[3], key[4], key[5], self._reason))
 
     def _diag_mode(self, t: float) -> Report:
         del t

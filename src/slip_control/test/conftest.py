@@ -9,7 +9,7 @@ import pytest
 from slip_control.core.contact import ContactProperties, ContactSource, FingerContact
 from slip_control.core.params import SlipControllerParams
 from slip_control.core.signals import SensorSnapshot, TwistSample, WrenchSample
-from slip_gripper_driver.core.frames import FrameParams, planar_from_middle
+from slip_cell_common.core.frames import FrameParams, planar_from_middle
 
 FRAMES = FrameParams()
 
@@ -101,7 +101,7 @@ class RosHarness:
         from rclpy.node import Node
         from geometry_msgs.msg import TwistStamped, WrenchStamped
         from rosgraph_msgs.msg import Clock
-        from slip_gripper_driver.common.qos import CLOCK, LATCHED, SENSOR_PUB
+        from slip_cell_common.qos import CLOCK, LATCHED, SENSOR_PUB
         from slip_msgs.msg import ContactProperties as ContactPropertiesMsg
         self.context = context
         self.node = Node('test_driver', context=context)
@@ -132,14 +132,14 @@ class RosHarness:
         return client
 
     def spin_until(self, predicate: Callable[[], bool], timeout_s: float = 5.0) -> bool:
-        from slip_gripper_driver.common.calls import spin_until
+        from slip_cell_common.calls import spin_until
         return spin_until(self.executor, predicate, timeout_s, step_s=0.002)
 
     def spin_for(self, seconds: float) -> None:
         self.spin_until(lambda: False, seconds)
 
     def call(self, srv_type: type, name: str, request: object, timeout_s: float = 10.0) -> object:
-        from slip_gripper_driver.common.calls import call_service
+        from slip_cell_common.calls import call_service
         client = self.node.create_client(srv_type, name)
         try:
             return call_service(self.executor, client, request, timeout_s)
@@ -148,7 +148,7 @@ class RosHarness:
 
     def collect(self, msg_type: type, topic: str, qos: object = None) -> list[object]:
         """Subscribe and return the list the messages are appended to."""
-        from slip_gripper_driver.common.qos import SENSOR_SUB
+        from slip_cell_common.qos import SENSOR_SUB
         out: list[object] = []
         self.node.create_subscription(msg_type, topic, out.append,
                                       SENSOR_SUB if qos is None else qos)
@@ -160,9 +160,9 @@ class RosHarness:
     def advance(self, t: float) -> None:
         """Publish ``/clock`` = ``t`` [s] and spin until every node under test has it."""
         from rosgraph_msgs.msg import Clock
-        from slip_control.ros_conv import s_to_stamp
+        from slip_control.ros_conv import seconds_to_stamp
         self.t = t
-        self._clock.publish(Clock(clock=s_to_stamp(t)))
+        self._clock.publish(Clock(clock=seconds_to_stamp(t)))
         ok = self.spin_until(lambda: all(self.node_time(n) >= t - 1e-9 for n in self.nodes),
                              5.0)
         assert ok, f'nodes did not receive /clock = {t}'
@@ -215,8 +215,8 @@ class RosHarness:
             self.deliver(s, node, wrenches=wrenches, twists=twists)
 
     def publish_properties(self, props: ContactProperties) -> None:
-        from slip_control.ros_conv import properties_to_msg, s_to_stamp
-        self._props.publish(properties_to_msg(props, s_to_stamp(self.t)))
+        from slip_control.ros_conv import properties_to_msg, seconds_to_stamp
+        self._props.publish(properties_to_msg(props, seconds_to_stamp(self.t)))
 
     def close(self) -> None:
         for c in self._action_clients:

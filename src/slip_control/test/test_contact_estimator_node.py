@@ -28,7 +28,7 @@ def _estimator(harness, **params):  # noqa: ANN001, ANN202
 
 
 def _latched_props(harness):  # noqa: ANN001, ANN202
-    from slip_gripper_driver.common.qos import LATCHED
+    from slip_cell_common.qos import LATCHED
     from slip_msgs.msg import ContactProperties
     return harness.collect(ContactProperties, 'contact/properties', LATCHED)
 
@@ -167,7 +167,7 @@ def test_preset_from_parameters_is_published_as_preset(harness, tmp_path: Path) 
 def test_missing_preset_refuses_to_start(ros_context, tmp_path: Path) -> None:  # noqa: ANN001
     from rclpy.parameter import Parameter
     from slip_control.contact_estimator_node import ContactEstimatorNode
-    from slip_gripper_driver.core.param_schema import ParameterError
+    from slip_cell_common.core.param_schema import ParameterError
     with pytest.raises(ParameterError, match='cannot load presets'):
         ContactEstimatorNode(context=ros_context, parameter_overrides=[
             Parameter('preset_file', value=str(tmp_path / 'none.yaml')),

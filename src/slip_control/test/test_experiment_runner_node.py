@@ -68,7 +68,7 @@ def _props(make_props):  # noqa: ANN001, ANN202
 def test_release_grasp_and_hold_mode_with_recording(harness, make_props,  # noqa: ANN001
                                                     tmp_path: Path) -> None:
     from action_msgs.msg import GoalStatus
-    from slip_gripper_driver.common.bag_io import read_messages
+    from slip_cell_common.bag_io import read_messages
     from slip_msgs.msg import GraspForceCommand
     runner = _runner(harness, tmp_path)
     _controller(harness)

@@ -34,7 +34,7 @@ def _controller(harness, **params):  # noqa: ANN001, ANN202
 
 
 def _outputs(harness):  # noqa: ANN001, ANN202
-    from slip_gripper_driver.common.qos import LATCHED
+    from slip_cell_common.qos import LATCHED
     from slip_msgs.msg import GraspForceCommand, SlipControllerState, SlipTracking
     return (harness.collect(GraspForceCommand, 'gripper/grasp_force_cmd'),
             harness.collect(SlipControllerState, 'slip_control/state', LATCHED),

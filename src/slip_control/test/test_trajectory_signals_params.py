@@ -12,8 +12,8 @@ from slip_control.core.params import (ContactEstimatorParams, ExperimentRunnerPa
 from slip_control.core.signals import (SensorSnapshot, TwistSample, WrenchSample, assess_inputs,
                                        combine_twists, combine_wrenches)
 from slip_control.core.trajectory import TrapezoidalTrajectory
-from slip_gripper_driver.core.frames import FrameParams, planar_from_middle
-from slip_gripper_driver.core.param_schema import ParameterError, flatten, from_flat
+from slip_cell_common.core.frames import FrameParams, planar_from_middle
+from slip_cell_common.core.param_schema import ParameterError, flatten, from_flat
 
 # --- trajectory -------------------------------------------------------------------------------
 

@@ -26,7 +26,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from slip_gripper_driver.common.bag_io import BagError, read_messages, stamp_s
+from slip_cell_common.bag_io import BagError, read_messages, stamp_s
 from slip_gripper_driver.core.force_tracking import (ForceTrackingProfile, ForceTrackingReport,
                                                      analyze, format_report)
 
@@ -88,9 +88,9 @@ def run_profile(node: Any, executor: Any, profile: ForceTrackingProfile, *,
     from slip_msgs.msg import GraspForceCommand
 
     from slip_gripper_driver import ros_conv
-    from slip_gripper_driver.common.calls import spin_until
-    from slip_gripper_driver.common.qos import COMMAND
-    from slip_gripper_driver.common.recorder import TopicRecorder
+    from slip_cell_common.calls import spin_until
+    from slip_cell_common.qos import COMMAND
+    from slip_cell_common.recorder import TopicRecorder
 
     pub = node.create_publisher(GraspForceCommand, COMMAND_TOPIC, COMMAND)
     if not spin_until(executor, lambda: pub.get_subscription_count() > 0, wait_s):

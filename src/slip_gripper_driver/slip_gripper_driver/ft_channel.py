@@ -18,7 +18,7 @@ import time
 from typing import Any, Callable, Sequence
 
 from slip_gripper_driver import ros_conv
-from slip_gripper_driver.core.monitors import AgeMonitor, FrequencyMonitor, Level, Report
+from slip_cell_common.core.monitors import AgeMonitor, FrequencyMonitor, Level, Report
 from slip_gripper_driver.core.netft import (BiasAccumulator, BiasParams, BiasState, FtParams,
                                             FtSample, NetFTClient, NetFTError, NetFTStats,
                                             fetch_netft_config)

@@ -38,20 +38,20 @@ from slip_msgs.msg import GraspForceCommand, GripperStatus, MotorCommand, Transf
 from std_srvs.srv import Trigger
 
 from slip_gripper_driver import ros_conv
-from slip_gripper_driver.common.diagnostics import DiagnosticsPublisher
-from slip_gripper_driver.common.node_main import run_node
-from slip_gripper_driver.common.params import ParameterBinding
-from slip_gripper_driver.common.qos import (COMMAND, LATCHED, QUIET_PUB, QUIET_SUB, SENSOR_PUB,
+from slip_cell_common.diagnostics import DiagnosticsPublisher
+from slip_cell_common.node_main import run_node
+from slip_cell_common.param_binding import ParameterBinding
+from slip_cell_common.qos import (COMMAND, LATCHED, QUIET_PUB, QUIET_SUB, SENSOR_PUB,
                                             SENSOR_SUB, overridable)
 from slip_gripper_driver.core.bridge import (BridgeDiagnostics, GripperDriverCore, LineResult,
                                              LinkState, WatchdogResult)
 from slip_gripper_driver.core.force_control import BypassReason
-from slip_gripper_driver.core.frames import FrameParams, finger_transforms, static_transforms
-from slip_gripper_driver.core.monitors import Level, Report
+from slip_cell_common.core.frames import FrameParams, finger_transforms, static_transforms
+from slip_cell_common.core.monitors import Level, Report
 from slip_gripper_driver.core.netft import NetFTError
-from slip_gripper_driver.core.param_schema import ParameterError
+from slip_cell_common.core.param_schema import ParameterError
 from slip_gripper_driver.core.realtime import ThreadTuning, freeze_gc
-from slip_gripper_driver.core.transport import ByteStream, LinkError, open_stream
+from slip_cell_common.core.serial_transport import ByteStream, LinkError, open_stream
 from slip_gripper_driver.ft_channel import (FT_SUPERVISE_PERIOD_S, FtChannel, TopicFtInput,
                                             run_bias, wrench_publisher)
 from slip_gripper_driver.node_params import GripperDriverParams

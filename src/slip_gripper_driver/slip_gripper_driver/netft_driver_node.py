@@ -21,13 +21,13 @@ from rclpy.clock import Clock, ClockType
 from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
 from std_srvs.srv import Trigger
 
-from slip_gripper_driver.common.diagnostics import DiagnosticsPublisher
-from slip_gripper_driver.common.node_main import run_node
-from slip_gripper_driver.common.params import ParameterBinding
-from slip_gripper_driver.common.qos import SENSOR_PUB, overridable
-from slip_gripper_driver.core.monitors import Level, Report
+from slip_cell_common.diagnostics import DiagnosticsPublisher
+from slip_cell_common.node_main import run_node
+from slip_cell_common.param_binding import ParameterBinding
+from slip_cell_common.qos import SENSOR_PUB, overridable
+from slip_cell_common.core.monitors import Level, Report
 from slip_gripper_driver.core.netft import NetFTError
-from slip_gripper_driver.core.param_schema import ParameterError
+from slip_cell_common.core.param_schema import ParameterError
 from slip_gripper_driver.ft_channel import (FT_SUPERVISE_PERIOD_S, FtChannel, run_bias,
                                             wrench_publisher)
 from slip_gripper_driver.node_params import NetFTDriverParams

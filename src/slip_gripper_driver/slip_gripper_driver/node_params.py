@@ -16,11 +16,11 @@ from slip_gripper_driver.core.homing import HomingParams
 from slip_gripper_driver.core.netft import (RDT_PORT, BiasParams, FtParams, force_unit_factor,
                                             torque_unit_factor)
 from slip_gripper_driver.core.observer import ObserverParams
-from slip_gripper_driver.core.param_schema import ParameterError
+from slip_cell_common.core.param_schema import ParameterError
 from slip_gripper_driver.core.protocol import ActuatorParams
 from slip_gripper_driver.core.realtime import RealtimeParams
-from slip_gripper_driver.core.transport import ReconnectParams, SerialParams
-from slip_gripper_driver.core.validation import validate_fields
+from slip_cell_common.core.serial_transport import ReconnectParams, SerialParams
+from slip_cell_common.core.validation import validate_fields
 
 _AUTOSTART = {'read_only': True,
               'description': 'configure and activate on start (launch event handlers are '

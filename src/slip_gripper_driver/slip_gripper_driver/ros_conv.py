@@ -15,22 +15,9 @@ from sensor_msgs.msg import JointState
 from slip_msgs.msg import GraspForceCommand, GripperStatus, MotorCommand, TransformArray
 
 from slip_gripper_driver.core.bridge import GripperStatusSnapshot, MotorCommandRecord
-from slip_gripper_driver.core.frames import Transform
+from slip_cell_common.core.frames import Transform
+from slip_cell_common.time_conv import seconds_to_stamp, stamp_to_seconds
 
-_NS = 1_000_000_000
-
-
-def to_time(t: float) -> Time:
-    """Float seconds → ``builtin_interfaces/Time`` (non-finite or negative → zero stamp)."""
-    if not math.isfinite(t) or t <= 0.0:
-        return Time()
-    ns = int(round(t * 1e9))
-    return Time(sec=ns // _NS, nanosec=ns % _NS)
-
-
-def from_time(stamp: Time) -> float:
-    """``builtin_interfaces/Time`` → float seconds."""
-    return stamp.sec + stamp.nanosec * 1e-9
 
 
 def _u32(value: int) -> int:
@@ -47,7 +34,7 @@ def status_msg(s: GripperStatusSnapshot) -> GripperStatus:
         homed=s.homed, ft_biased=s.ft_biased, ft_fresh=s.ft_fresh, link_ok=s.link_ok,
         in_contact=s.in_contact, command_expired=s.command_expired, armed=s.armed,
         safe_state=s.safe_state)
-    msg.header.stamp = to_time(s.stamp)
+    msg.header.stamp = seconds_to_stamp(s.stamp)
     return msg
 
 
@@ -57,7 +44,7 @@ def motor_msg(m: MotorCommandRecord) -> MotorCommand:
         force_target=m.force_target, force_cmd=m.force_cmd, voltage_cmd=m.voltage_cmd,
         measured_force=m.measured_force, error=m.error, integral=m.integral,
         gain_scale=m.gain_scale, closed_loop=m.closed_loop, bypass_reason=m.bypass_reason)
-    msg.header.stamp = to_time(m.stamp)
+    msg.header.stamp = seconds_to_stamp(m.stamp)
     return msg
 
 
@@ -67,14 +54,14 @@ def joint_state_msg(stamp: float, names: Sequence[str], opening: float, opening_
     measured grasp force [N] (NaN when stale or unbiased; never the commanded force)."""
     msg = JointState(name=list(names), position=[0.5 * opening] * 2,
                      velocity=[0.5 * opening_rate] * 2, effort=[measured_force] * 2)
-    msg.header.stamp = to_time(stamp)
+    msg.header.stamp = seconds_to_stamp(stamp)
     return msg
 
 
 def wrench_msg(stamp: float, frame_id: str, wrench: Sequence[float]) -> WrenchStamped:
     """``geometry_msgs/WrenchStamped`` (N, N·m) in ``frame_id``."""
     msg = WrenchStamped()
-    msg.header.stamp = to_time(stamp)
+    msg.header.stamp = seconds_to_stamp(stamp)
     msg.header.frame_id = frame_id
     f, m = msg.wrench.force, msg.wrench.torque
     f.x, f.y, f.z = float(wrench[0]), float(wrench[1]), float(wrench[2])
@@ -85,13 +72,13 @@ def wrench_msg(stamp: float, frame_id: str, wrench: Sequence[float]) -> WrenchSt
 def wrench_from_msg(msg: WrenchStamped) -> tuple[float, tuple[float, ...]]:
     """``(stamp [s], (Fx, Fy, Fz, Tx, Ty, Tz))`` of a wrench message."""
     f, m = msg.wrench.force, msg.wrench.torque
-    return from_time(msg.header.stamp), (f.x, f.y, f.z, m.x, m.y, m.z)
+    return stamp_to_seconds(msg.header.stamp), (f.x, f.y, f.z, m.x, m.y, m.z)
 
 
 def transforms_msg(stamp: float, transforms: Iterable[Transform]) -> TransformArray:
     """``slip_msgs/TransformArray`` (same layout as ``tf2_msgs/TFMessage``)."""
     out = TransformArray()
-    time_msg = to_time(stamp)
+    time_msg = seconds_to_stamp(stamp)
     for tr in transforms:
         ts = TransformStamped()
         ts.header.stamp = time_msg
@@ -106,12 +93,12 @@ def transforms_msg(stamp: float, transforms: Iterable[Transform]) -> TransformAr
 
 def grasp_command(msg: GraspForceCommand) -> tuple[float, float, float, int]:
     """``(force [N], stamp [s] (0 = unstamped), timeout [s], source)`` of a command."""
-    return float(msg.force), from_time(msg.header.stamp), float(msg.timeout), int(msg.source)
+    return float(msg.force), stamp_to_seconds(msg.header.stamp), float(msg.timeout), int(msg.source)
 
 
 def grasp_command_msg(stamp: float, force: float, timeout: float,
                       source: int = GraspForceCommand.SOURCE_MANUAL) -> GraspForceCommand:
     """A ``slip_msgs/GraspForceCommand`` (tools and tests)."""
     msg = GraspForceCommand(force=float(force), timeout=float(timeout), source=source)
-    msg.header.stamp = to_time(stamp)
+    msg.header.stamp = seconds_to_stamp(stamp)
     return msg

@@ -10,7 +10,7 @@ from slip_gripper_driver.core.firmware_emulator import (BOOT_BANNER, EmulatedFir
                                                         FirmwareEmulator, GripperModelParams,
                                                         atof)
 from slip_gripper_driver.core.protocol import LineKind, TelemetryParser
-from slip_gripper_driver.core.transport import ByteStream, LineReader
+from slip_cell_common.core.serial_transport import ByteStream, LineReader
 
 
 @pytest.mark.parametrize('text, value', [

@@ -9,7 +9,7 @@ import pytest
 
 from slip_gripper_driver.core.force_control import (BypassReason, ForceControlParams,
                                                     ForceLoopInput, GraspForceController)
-from slip_gripper_driver.core.param_schema import ParameterError, flatten, from_flat
+from slip_cell_common.core.param_schema import ParameterError, flatten, from_flat
 
 DT = 0.002
 

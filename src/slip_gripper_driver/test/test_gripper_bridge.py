@@ -15,9 +15,9 @@ from slip_gripper_driver.core.bridge import (BridgeParams, CommandParams, Grippe
                                              LineResult, LinkState)
 from slip_gripper_driver.core.firmware_emulator import FirmwareEmulator, GripperModelParams
 from slip_gripper_driver.core.force_control import BypassReason, ForceControlParams
-from slip_gripper_driver.core.param_schema import ParameterError, flatten, from_flat
+from slip_cell_common.core.param_schema import ParameterError, flatten, from_flat
 from slip_gripper_driver.core.protocol import command_voltage
-from slip_gripper_driver.core.transport import LineReader
+from slip_cell_common.core.serial_transport import LineReader
 
 NPV = 3.9166
 OBJECT = GripperModelParams(object_width=0.03, object_stiffness=20000.0, initial_opening=0.031)

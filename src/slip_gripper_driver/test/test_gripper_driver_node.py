@@ -111,7 +111,7 @@ class Rig:
         from rclpy.parameter import Parameter
 
         from slip_gripper_driver.gripper_driver_node import GripperDriverNode
-        from slip_gripper_driver.testing import SpinThread
+        from slip_cell_common.testing import SpinThread
         self.node = GripperDriverNode(context=ctx, parameter_overrides=[
             Parameter(k, value=v) for k, v in overrides.items()])
         self.executor = MultiThreadedExecutor(num_threads=3, context=ctx)
@@ -125,7 +125,7 @@ class Rig:
         self._clients: dict[str, Any] = {}
         from slip_msgs.msg import GraspForceCommand
 
-        from slip_gripper_driver.common.qos import COMMAND
+        from slip_cell_common.qos import COMMAND
         self._cmd_pub = self.probe.create_publisher(GraspForceCommand,
                                                     'gripper/grasp_force_cmd', COMMAND)
 
@@ -138,13 +138,13 @@ class Rig:
         return out
 
     def spin_until(self, predicate: Callable[[], bool], timeout_s: float = TIMEOUT_S) -> bool:
-        from slip_gripper_driver.testing import spin_until
+        from slip_cell_common.testing import spin_until
         return spin_until(self.probe_exec, predicate, timeout_s)
 
     def call(self, name: str, timeout_s: float = TIMEOUT_S) -> Any:
         from std_srvs.srv import Trigger
 
-        from slip_gripper_driver.testing import call_service
+        from slip_cell_common.testing import call_service
         # Clients are kept: destroying DDS entities holds the GIL for up to hundreds of ms,
         # which starves the in-process emulators (the driver then sees a real link gap).
         if name not in self._clients:
@@ -171,7 +171,7 @@ class Rig:
             self.node.last_error
 
     def close(self) -> None:
-        from slip_gripper_driver.common.node_main import shutdown_lifecycle
+        from slip_cell_common.node_main import shutdown_lifecycle
         try:
             shutdown_lifecycle(self.node)
         finally:
@@ -223,7 +223,7 @@ def test_status_at_500_hz_stamped_frames_joint_states_and_diagnostics(
     from sensor_msgs.msg import JointState
     from slip_msgs.msg import GripperStatus, TransformArray
 
-    from slip_gripper_driver.common.qos import LATCHED
+    from slip_cell_common.qos import LATCHED
     rig = rig_factory(cell.overrides())
     statuses = rig.subscribe(GripperStatus, 'gripper/status')
     joints = rig.subscribe(JointState, 'gripper/joint_states')
@@ -521,7 +521,7 @@ def test_topic_mode_consumes_standalone_netft_drivers_and_biases_through_them(
 
     from slip_gripper_driver.gripper_driver_node import GripperDriverNode
     from slip_gripper_driver.netft_driver_node import NetFTDriverNode
-    from slip_gripper_driver.testing import SpinThread, call_service, spin_until
+    from slip_cell_common.testing import SpinThread, call_service, spin_until
 
     def params(values: dict[str, Any]) -> list[Any]:
         return [Parameter(k, value=v) for k, v in values.items()]
@@ -564,7 +564,7 @@ def test_topic_mode_consumes_standalone_netft_drivers_and_biases_through_them(
         report = gripper.topic_inputs[1].report(gripper.now(), 0.2)
         assert report.level != 2, report  # fresh (the rate depends on this crowded process)
     finally:
-        from slip_gripper_driver.common.node_main import shutdown_lifecycle
+        from slip_cell_common.node_main import shutdown_lifecycle
         spinner.stop()  # no wait set may hold entities that the shutdown destroys
         for node in (gripper, *drivers):
             shutdown_lifecycle(node)

@@ -9,7 +9,7 @@ import pytest
 from slip_gripper_driver.core.bridge import BridgeParams, GripperBridge
 from slip_gripper_driver.core.firmware_emulator import FirmwareEmulator, GripperModelParams
 from slip_gripper_driver.core.homing import (Homing, HomingParams, HomingPhase, homing_refusal)
-from slip_gripper_driver.core.transport import LineReader
+from slip_cell_common.core.serial_transport import LineReader
 
 K_OPEN = 0.0086751614
 DT = 0.002

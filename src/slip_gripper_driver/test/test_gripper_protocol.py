@@ -9,12 +9,12 @@ import numpy as np
 import pytest
 
 from slip_gripper_driver.core.firmware_emulator import atof
-from slip_gripper_driver.core.param_schema import ParameterError
+from slip_cell_common.core.param_schema import ParameterError
 from slip_gripper_driver.core.protocol import (ActuatorParams, CommandError, LineKind,
                                                TelemetryParser, command_voltage,
                                                encode_force_command, force_to_voltage,
                                                format_voltage_command, voltage_to_force)
-from slip_gripper_driver.core.transport import LineReader
+from slip_cell_common.core.serial_transport import LineReader
 
 NPV = 3.9166
 

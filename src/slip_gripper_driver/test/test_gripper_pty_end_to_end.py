@@ -14,7 +14,7 @@ import pytest
 from slip_gripper_driver.core.bridge import BridgeParams, GripperDriverCore, LineResult, LinkState
 from slip_gripper_driver.core.firmware_emulator import (FirmwareEmulator, GripperModelParams,
                                                         PtyFirmwareEmulator)
-from slip_gripper_driver.core.transport import LinkError, ReconnectParams
+from slip_cell_common.core.serial_transport import LinkError, ReconnectParams
 
 TIMEOUT_S = 5.0
 

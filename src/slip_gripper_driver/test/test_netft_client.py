@@ -9,7 +9,7 @@ from typing import Callable, Iterator
 
 import pytest
 
-from slip_gripper_driver.core.monitors import Level
+from slip_cell_common.core.monitors import Level
 from slip_gripper_driver.core.netft import (BiasAccumulator, BiasState, ForceTorqueScale,
                                             FtSample, NetFTClient, NetFTError,
                                             fetch_netft_config)

@@ -8,14 +8,14 @@ import struct
 import numpy as np
 import pytest
 
-from slip_gripper_driver.core.monitors import Level
+from slip_cell_common.core.monitors import Level
 from slip_gripper_driver.core.netft import (RECORD_SIZE, BiasAccumulator, BiasParams, BiasState,
                                             DatagramError, ForceTorqueScale, FtParams,
                                             RdtCommand, SequenceTracker, SeqVerdict,
                                             decode_datagram, decode_request, decode_status,
                                             encode_record, encode_request, force_unit_factor,
                                             parse_netft_config, torque_unit_factor)
-from slip_gripper_driver.core.param_schema import ParameterError, flatten
+from slip_cell_common.core.param_schema import ParameterError, flatten
 
 
 def test_request_layout_is_big_endian_8_bytes() -> None:

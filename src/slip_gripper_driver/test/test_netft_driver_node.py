@@ -44,9 +44,9 @@ def test_raw_then_bias_service_then_biased_wrench_diagnostics_and_stop_on_shutdo
     from rclpy.qos import QoSProfile
     from std_srvs.srv import Trigger
 
-    from slip_gripper_driver.common.node_main import shutdown_lifecycle
+    from slip_cell_common.node_main import shutdown_lifecycle
     from slip_gripper_driver.netft_driver_node import NetFTDriverNode
-    from slip_gripper_driver.testing import SpinThread, call_service, spin_until
+    from slip_cell_common.testing import SpinThread, call_service, spin_until
 
     node = NetFTDriverNode(context=ros_context, parameter_overrides=overrides(box.address[1]))
     executor = MultiThreadedExecutor(num_threads=2, context=ros_context)

@@ -9,7 +9,7 @@ import threading
 import pytest
 
 from slip_gripper_driver.core import realtime
-from slip_gripper_driver.core.param_schema import ParameterError
+from slip_cell_common.core.param_schema import ParameterError
 from slip_gripper_driver.core.realtime import RealtimeParams, ThreadTuning, freeze_gc
 
 

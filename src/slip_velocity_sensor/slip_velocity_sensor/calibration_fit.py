@@ -62,7 +62,7 @@ def read_bag_recording(path: Path, chip: int, axis: str,
     Raises:
         ValueError: No (or an ambiguous) chips topic, or no samples of the chip.
     """
-    from slip_gripper_driver.common.bag_io import BagError, bag_info, read_messages, stamp_s
+    from slip_cell_common.bag_io import BagError, bag_info, read_messages, stamp_s
 
     try:
         if topic:
@@ -127,7 +127,7 @@ def write_bag_recording(path: Path, t: np.ndarray, v: np.ndarray, chip: int, axi
         axis: ``'x'`` or ``'y'``.
         finger: Finger of the topic name.
     """
-    from slip_gripper_driver.common.bag_io import BagWriter
+    from slip_cell_common.bag_io import BagWriter
 
     topic = f'/finger_{finger}/slip/chips'
     msgtype = 'slip_msgs/msg/OpticalChipArray'

@@ -34,9 +34,9 @@ from rclpy.signals import SignalHandlerOptions
 from rclpy.utilities import remove_ros_args
 from slip_msgs.srv import SetChipMode
 
-from slip_gripper_driver.common.bag_io import bag_info
-from slip_gripper_driver.common.calls import call_service, spin_until
-from slip_gripper_driver.common.recorder import TopicRecorder
+from slip_cell_common.bag_io import bag_info
+from slip_cell_common.calls import call_service, spin_until
+from slip_cell_common.recorder import TopicRecorder
 from slip_velocity_sensor.core.procedure import (ProcedureParams, prompt_schedule, schedule,
                                                  scaled)
 

@@ -13,7 +13,7 @@ from slip_msgs.msg import OpticalChipArray, PlanarSlip
 
 from slip_velocity_sensor.core.protocol import N_CHIPS
 from slip_velocity_sensor.core.session import Sample
-from slip_gripper_driver.ros_conv import to_time
+from slip_cell_common.time_conv import seconds_to_stamp
 
 NAN = math.nan
 
@@ -21,7 +21,7 @@ NAN = math.nan
 def twist_msg(sample: Sample, frame_id: str) -> TwistStamped:
     """A valid fused sample as TwistStamped: linear.x/y [m/s], angular.z [rad/s]."""
     msg = TwistStamped()
-    msg.header.stamp = to_time(sample.stamp)
+    msg.header.stamp = seconds_to_stamp(sample.stamp)
     msg.header.frame_id = frame_id
     msg.twist.linear.x = sample.vx
     msg.twist.linear.y = sample.vy
@@ -43,7 +43,7 @@ def planar_slip_msg(sample: Sample, frame_id: str, chip_mode: int) -> PlanarSlip
                      chip_mode=sample.chip_mode if sample.chip_mode >= 0 else chip_mode,
                      excluded_chip=sample.excluded_chip, residual_ratio=sample.residual_ratio,
                      valid=sample.valid)
-    msg.header.stamp = to_time(sample.stamp)
+    msg.header.stamp = seconds_to_stamp(sample.stamp)
     msg.header.frame_id = frame_id
     return msg
 
@@ -67,6 +67,6 @@ def chip_array_msg(sample: Sample, frame_id: str, dt: float) -> OpticalChipArray
     vx[k], vy[k], synced[k] = sample.chip_vx, sample.chip_vy, True
     msg = OpticalChipArray(chip_mode=sample.chip_mode, dt=dt, vx=vx, vy=vy, calibrated=False,
                            synced=synced)
-    msg.header.stamp = to_time(sample.stamp)
+    msg.header.stamp = seconds_to_stamp(sample.stamp)
     msg.header.frame_id = frame_id
     return msg

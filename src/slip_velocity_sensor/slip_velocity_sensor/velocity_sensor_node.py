@@ -49,12 +49,12 @@ from slip_msgs.msg import OpticalChipArray, PlanarSlip
 from slip_msgs.srv import SetChipMode
 from std_srvs.srv import Trigger
 
-from slip_gripper_driver.common.diagnostics import DiagnosticsPublisher
-from slip_gripper_driver.common.node_main import run_node
-from slip_gripper_driver.common.params import ParameterBinding
-from slip_gripper_driver.common.qos import SENSOR_PUB, overridable
-from slip_gripper_driver.core.monitors import Level, Report
-from slip_gripper_driver.core.param_schema import ParameterError
+from slip_cell_common.diagnostics import DiagnosticsPublisher
+from slip_cell_common.node_main import run_node
+from slip_cell_common.param_binding import ParameterBinding
+from slip_cell_common.qos import SENSOR_PUB, overridable
+from slip_cell_common.core.monitors import Level, Report
+from slip_cell_common.core.param_schema import ParameterError
 from slip_velocity_sensor import ros_conv
 from slip_velocity_sensor.core import protocol
 from slip_velocity_sensor.core.calibration import CalibrationError, resolve_calibration

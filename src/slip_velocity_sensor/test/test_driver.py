@@ -17,8 +17,8 @@ from typing import Callable, Iterator
 
 import pytest
 
-from slip_gripper_driver.core.monitors import Level
-from slip_gripper_driver.core.param_schema import from_flat
+from slip_cell_common.core.monitors import Level
+from slip_cell_common.core.param_schema import from_flat
 from slip_velocity_sensor.core import calibration as cal_mod
 from slip_velocity_sensor.core.driver import DriverError, SensorDriver
 from slip_velocity_sensor.core.emulator import (ConstantTwist, EmulatorParams, FirmwareEmulator,

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from slip_gripper_driver.core.param_schema import ParameterError, flatten, from_flat, specs
+from slip_cell_common.core.param_schema import ParameterError, flatten, from_flat, specs
 from slip_velocity_sensor.core.identity import (DuplicateSensorNameError, MissingSensorError,
                                                 NameClaim, assign_ports)
 from slip_velocity_sensor.core.params import VelocitySensorParams

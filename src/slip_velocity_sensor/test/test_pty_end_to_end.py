@@ -13,8 +13,8 @@ from typing import Callable, Iterator
 
 import pytest
 
-from slip_gripper_driver.core.monitors import Level
-from slip_gripper_driver.core.transport import ReconnectParams, SerialLink
+from slip_cell_common.core.monitors import Level
+from slip_cell_common.core.serial_transport import ReconnectParams, SerialLink
 from slip_velocity_sensor.core import calibration as cal_mod
 from slip_velocity_sensor.core import protocol
 from slip_velocity_sensor.core.emulator import (ConstantTwist, EmulatorParams, FirmwareEmulator,

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from slip_gripper_driver.core.monitors import Level
+from slip_cell_common.core.monitors import Level
 from slip_velocity_sensor.core import protocol
 from slip_velocity_sensor.core.session import SensorSession, SessionParams
 

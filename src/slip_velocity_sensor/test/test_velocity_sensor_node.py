@@ -31,8 +31,8 @@ from slip_msgs.msg import OpticalChipArray, PlanarSlip  # noqa: E402
 from slip_msgs.srv import SetChipMode  # noqa: E402
 from std_srvs.srv import Trigger  # noqa: E402
 
-from slip_gripper_driver.common.calls import call_service, spin_until  # noqa: E402
-from slip_gripper_driver.common.qos import DIAGNOSTICS, SENSOR_SUB  # noqa: E402
+from slip_cell_common.calls import call_service, spin_until  # noqa: E402
+from slip_cell_common.qos import DIAGNOSTICS, SENSOR_SUB  # noqa: E402
 from slip_velocity_sensor.core import calibration as cal_mod  # noqa: E402
 from slip_velocity_sensor.core.emulator import (ConstantTwist, EmulatorParams,  # noqa: E402
                                                 FirmwareEmulator, PtyEmulator)

@@ -15,7 +15,7 @@ Frames and signs
   world XY.
 * **Pads**: pad k's contact frame is ``vel_sensor_k``. Twists and wrenches go between
   ``gripper_middle`` and the pad frames with the shared
-  :func:`~slip_gripper_driver.core.frames.planar_from_middle` / ``planar_to_middle`` (finger 2's
+  :func:`~slip_cell_common.core.frames.planar_from_middle` / ``planar_to_middle`` (finger 2's
   ω and τ flip); the plant evaluates them once into constant 3×3 matrices ``P_k``.
 * **Object**: rigid, CoM at ``X = (X, Y)``, angle ``θ`` (0 = upright), generalised velocity
   ``u = (V_X, V_Y, Ω)``, mass matrix ``M = diag(m, m, I)`` (I about the CoM).
@@ -118,8 +118,8 @@ from typing import NamedTuple, Optional, Union
 
 import numpy as np
 
-from slip_gripper_driver.core.frames import FrameParams, planar_from_middle, planar_to_middle
-from slip_gripper_driver.core.param_schema import ranged_field as _f
+from slip_cell_common.core.frames import FrameParams, planar_from_middle, planar_to_middle
+from slip_cell_common.core.param_schema import ranged_field as _f
 
 from .distributed import DistributedPlanarLuGre
 from .limit_surface import LimitSurfaceCache, characteristic_radius

@@ -31,7 +31,7 @@ from typing import Iterator, Optional, Union
 
 import numpy as np
 
-from slip_gripper_driver.core.param_schema import ranged_field as _f
+from slip_cell_common.core.param_schema import ranged_field as _f
 from slip_velocity_sensor.core.chip_model import ChipModelParams, CountQuantizer
 from slip_velocity_sensor.core.fusion import FusionParams, RigidBodyFusion
 

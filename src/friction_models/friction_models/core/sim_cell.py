@@ -37,10 +37,10 @@ import numpy as np
 from slip_gripper_driver.core.force_control import (BypassReason, ForceControlParams,
                                                     ForceLoopInput, ForceLoopOutput,
                                                     GraspForceController)
-from slip_gripper_driver.core.frames import FrameParams
+from slip_cell_common.core.frames import FrameParams
 from slip_gripper_driver.core.homing import Homing, HomingParams, homing_refusal
 from slip_gripper_driver.core.observer import ObserverParams, RateObserver
-from slip_gripper_driver.core.param_schema import ParameterError, check_value, specs
+from slip_cell_common.core.param_schema import ParameterError, check_value, specs
 from slip_gripper_driver.core.protocol import force_to_voltage
 
 from .limit_surface import LimitSurfaceCache

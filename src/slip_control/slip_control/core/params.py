@@ -2,7 +2,7 @@
 """Parameter sets of the slip_control nodes as frozen dataclasses (ros_interfaces spec §6.4–6.6).
 
 One dataclass per node; groups are nested dataclasses flattened with ``.`` by
-`slip_gripper_driver.core.param_schema` (``linear.kp``). Defaults are those of
+`slip_cell_common.core.param_schema` (``linear.kp``). Defaults are those of
 ros_interfaces §6.4–6.6 and control_and_estimation §4.10. Fields beyond those tables are marked
 *(addition)* in their description; they make limits and tuning knobs parameters instead of
 literals (house style §11).
@@ -16,9 +16,9 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
-from slip_gripper_driver.core.frames import FrameParams
-from slip_gripper_driver.core.param_schema import ParameterError, check_value, flatten, specs
-from slip_gripper_driver.core.param_schema import ranged_field as _f
+from slip_cell_common.core.frames import FrameParams
+from slip_cell_common.core.param_schema import ParameterError, check_value, flatten, specs
+from slip_cell_common.core.param_schema import ranged_field as _f
 
 
 def _problems(instance: Any) -> list[str]:

@@ -5,7 +5,7 @@ Per finger, in the raw sensor frames ``ft_sensor_k`` / ``vel_sensor_k`` (bias re
 ``f_n = |Fz|``, ``f_t = ‖(Fx, Fy)‖``, ``τ = Tz``, ``v = ‖(vx, vy)‖``, ``ω``.
 
 Two-finger combination (§1.2): each finger's ``(Fx, Fy, Tz)`` and ``(vx, vy, ω)`` is rotated into
-``gripper_middle`` with `slip_gripper_driver.core.frames.planar_to_middle` (finger 2's z flips);
+``gripper_middle`` with `slip_cell_common.core.frames.planar_to_middle` (finger 2's z flips);
 then, with primes for middle-frame values,
 
 * signed means ``v̄ = (v1' + v2')/2`` (xy), ``ω̄ = (ω1' + ω2')/2``, ``F̄ = (F1' + F2')/2``,
@@ -26,7 +26,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, replace
 
-from slip_gripper_driver.core.frames import FrameParams, planar_to_middle
+from slip_cell_common.core.frames import FrameParams, planar_to_middle
 
 INF = float('inf')
 

@@ -35,7 +35,7 @@ import numpy as np
 
 from slip_control.core.controllers import ControlOutput, SlipController
 from slip_control.core.signals import SensorSnapshot, TwistSample, WrenchSample
-from slip_gripper_driver.core.frames import FrameParams, planar_from_middle
+from slip_cell_common.core.frames import FrameParams, planar_from_middle
 
 #: Optical-chip displacement per count [m] (3200 counts per inch).
 COUNT_M = 0.0254 / 3200.0

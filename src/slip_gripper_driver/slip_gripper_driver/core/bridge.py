@@ -52,13 +52,13 @@ from slip_gripper_driver.core.force_control import (BypassReason, ForceControlPa
                                                     GraspForceController)
 from slip_gripper_driver.core.homing import Homing, HomingParams, homing_refusal
 from slip_gripper_driver.core.observer import ObserverParams, RateObserver
-from slip_gripper_driver.core.param_schema import ParameterError
+from slip_cell_common.core.param_schema import ParameterError
 from slip_gripper_driver.core.protocol import (ActuatorParams, CommandError, LineKind,
                                                TelemetryParser, encode_force_command,
                                                format_voltage_command, voltage_to_force)
-from slip_gripper_driver.core.transport import (ByteStream, Clock, LinkError, LinkStats,
+from slip_cell_common.core.serial_transport import (ByteStream, Clock, LinkError, LinkStats,
                                                 ReconnectParams, SerialLink, open_stream)
-from slip_gripper_driver.core.validation import validate_fields
+from slip_cell_common.core.validation import validate_fields
 
 #: Commands stamped further in the future than this (relative to their arrival) are rejected
 #: as a clock mismatch between nodes [s].

@@ -46,8 +46,8 @@ import math
 from dataclasses import dataclass, field
 from enum import IntEnum
 
-from slip_gripper_driver.core.param_schema import ranged_field as _f
-from slip_gripper_driver.core.validation import validate_fields
+from slip_cell_common.core.param_schema import ranged_field as _f
+from slip_cell_common.core.validation import validate_fields
 
 #: Longest ``dt`` [s] accepted for the integral update; longer (or ≤ 0) steps skip it.
 MAX_DT_S = 0.1

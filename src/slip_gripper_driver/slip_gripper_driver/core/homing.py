@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 from enum import IntEnum
 from typing import NamedTuple
 
-from slip_gripper_driver.core.validation import validate_fields
+from slip_cell_common.core.validation import validate_fields
 
 #: Initial value of the stall average [rad per line]: far above any sensible threshold.
 STALL_AVG_INIT_RAD = 1.0

@@ -33,9 +33,9 @@ from dataclasses import dataclass, field
 from enum import IntEnum
 from typing import Callable, NamedTuple, Sequence
 
-from slip_gripper_driver.core.monitors import Level
-from slip_gripper_driver.core.transport import ReconnectPolicy
-from slip_gripper_driver.core.validation import validate_fields
+from slip_cell_common.core.monitors import Level
+from slip_cell_common.core.serial_transport import ReconnectPolicy
+from slip_cell_common.core.validation import validate_fields
 
 RDT_PORT = 49152
 REQUEST_HEADER = 0x1234

@@ -23,7 +23,7 @@ import math
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
-from slip_gripper_driver.core.validation import validate_fields
+from slip_cell_common.core.validation import validate_fields
 
 #: Longest accepted stamp difference [s]; longer gaps re-initialise the observer.
 MAX_DT_S = 0.1

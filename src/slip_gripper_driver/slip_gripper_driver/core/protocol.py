@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 from enum import IntEnum
 from typing import NamedTuple
 
-from slip_gripper_driver.core.validation import validate_fields
+from slip_cell_common.core.validation import validate_fields
 
 #: The firmware drops its buffer after this many characters without a newline.
 FIRMWARE_MAX_LINE_CHARS = 20

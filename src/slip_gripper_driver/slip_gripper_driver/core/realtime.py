@@ -27,7 +27,7 @@ import os
 import threading
 from dataclasses import dataclass, field
 
-from slip_gripper_driver.core.validation import validate_fields
+from slip_cell_common.core.validation import validate_fields
 
 #: Lowest generation-0 threshold `freeze_gc` leaves (CPython default 700: net allocations
 #: between collections stay small, so each young collection stays short).

@@ -32,9 +32,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
-from slip_gripper_driver.core.monitors import Level, Report
-from slip_gripper_driver.core.param_schema import flatten
-from slip_gripper_driver.core.transport import (ByteStream, LinkError, ReconnectPolicy,
+from slip_cell_common.core.monitors import Level, Report
+from slip_cell_common.core.param_schema import flatten
+from slip_cell_common.core.serial_transport import (ByteStream, LinkError, ReconnectPolicy,
                                                 SerialLink, open_stream)
 from slip_velocity_sensor.core import protocol
 from slip_velocity_sensor.core.calibration import SensorCalibration, upload_commands

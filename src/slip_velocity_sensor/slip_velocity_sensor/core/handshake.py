@@ -321,7 +321,7 @@ class Handshake:
 class HandshakeRunner:
     """Run a `Handshake` on lines delivered by a reader thread, blocking the calling thread.
 
-    The reader thread (``slip_gripper_driver.core.transport.SerialLink``) calls `on_line` and
+    The reader thread (``slip_cell_common.core.serial_transport.SerialLink``) calls `on_line` and
     `on_lost`; the configuring thread calls `run`, which returns when the handshake is done.
     Total blocking is bounded by ``retries × timeout`` plus command spacing.
 

@@ -2,7 +2,7 @@
 """Parameters of the ``velocity_sensor`` lifecycle node (ros_interfaces spec §6.3), ROS-free.
 
 One frozen dataclass; nested groups flatten with ``.`` (``handshake.timeout``,
-``calibration.chip_1.x.a``). `slip_gripper_driver.core.param_schema` validates and rebuilds it;
+``calibration.chip_1.x.a``). `slip_cell_common.core.param_schema` validates and rebuilds it;
 ``config/velocity_sensor.yaml`` must list every field. Beyond the spec table:
 ``max_integration_dt``, ``chip_mode_settle`` and ``resync_timeout`` (host processing, see
 `session.SessionParams`), ``lock_dir`` (name claim, `identity.NameClaim`), ``reconnect.*``
@@ -22,8 +22,8 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass, field
 
-from slip_gripper_driver.core.param_schema import ParameterError, check_value, specs
-from slip_gripper_driver.core.transport import ReconnectParams
+from slip_cell_common.core.param_schema import ParameterError, check_value, specs
+from slip_cell_common.core.serial_transport import ReconnectParams
 from slip_velocity_sensor.core import protocol
 from slip_velocity_sensor.core.calibration import CalibrationParams
 from slip_velocity_sensor.core.handshake import HandshakeParams

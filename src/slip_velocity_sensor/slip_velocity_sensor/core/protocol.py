@@ -164,7 +164,7 @@ class ParserCounters:
 class LineSplitter:
     """Split a byte stream into lines at ``\\n``, keeping partial lines between calls.
 
-    For byte-level paths that do not go through ``slip_gripper_driver.core.transport``
+    For byte-level paths that do not go through ``slip_cell_common.core.serial_transport``
     (the emulator's command input, `session.SensorSession.feed`); it returns ``(line,
     overflow)`` pairs like that module's ``LineReader``. A run longer than ``max_line_bytes``
     without a newline is returned once, truncated, with ``overflow=True``; the rest up to the

@@ -29,7 +29,7 @@ import math
 import threading
 from dataclasses import dataclass, field
 
-from slip_gripper_driver.core.monitors import AgeMonitor, FrequencyMonitor, Level, Report
+from slip_cell_common.core.monitors import AgeMonitor, FrequencyMonitor, Level, Report
 from slip_velocity_sensor.core import protocol
 from slip_velocity_sensor.core.protocol import (BadLine, BootLine, LineParser, LineSplitter,
                                                 NameLine, ParsedLine, ParserCounters,

@@ -1,1 +1,0 @@
-"""Shared rclpy helpers of the cell: QoS profiles, parameters, diagnostics, node entry points."""
