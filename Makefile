@@ -16,15 +16,17 @@ BUILD_INPUTS := $(shell find src -type f \( -name package.xml -o -name setup.py 
 	-not -path '*/__pycache__/*' 2>/dev/null)
 # friction_models' simulation core is compiled with mypyc (setup.py; list = core.native.COMPILED_MODULES).
 NATIVE_SOURCES := $(addprefix src/friction_models/friction_models/core/,native.py \
-	limit_surface.py reduced.py plant.py sensors.py sim_cell.py)
+	limit_surface.py reduced.py pad_contact.py actuator.py arm.py table.py plant.py sensors.py \
+	sim_cell.py)
 PYTEST_ARGS ?=
 DEMO_ARGS ?=
 
-.PHONY: help setup test demo bench bags clean lock
+.PHONY: help setup test lint demo bench bags clean lock
 
 help:
 	@echo "make setup   venv ($(MODE) mode) + colcon build (idempotent)"
 	@echo "make test    all tests (runs setup when needed)"
+	@echo "make lint    ruff and mypy over every package (runs setup when needed)"
 	@echo "make demo    the main job: the simulated cell runs a full slip experiment"
 	@echo "make bench   benchmarks (print tables)"
 	@echo "make bags    regenerate the recorded experiments in bags/"
@@ -44,6 +46,13 @@ $(BUILD_STAMP): $(VENV_STAMP) $(BUILD_INPUTS) $(NATIVE_SOURCES) tools/colcon_bui
 
 test: setup
 	@$(RUN) $(PY) -m pytest $(PYTEST_ARGS)
+
+# Lint: ruff (ruff.toml) over the tree, mypy (mypy.ini) over every Python package.
+LINT_PACKAGES := slip_cell_common slip_gripper_driver slip_velocity_sensor friction_models \
+	slip_control slip_bringup
+lint: setup
+	@$(VENV)/bin/ruff check .
+	@$(RUN) $(PY) -m mypy $(addprefix -p ,$(LINT_PACKAGES))
 
 demo: setup
 	@$(RUN) $(PY) -m slip_bringup.demo $(DEMO_ARGS)

@@ -7,7 +7,7 @@ can ever multicast on a non-loopback interface.
 from __future__ import annotations
 
 import os
-from typing import Iterator
+from collections.abc import Iterator
 
 import pytest
 

@@ -7,7 +7,7 @@ The firmware emulator runs in a child process on a pseudo-terminal (its console 
 and, by default, two Net F/T emulators measuring the pad force. This process runs what the
 ``gripper_driver`` node runs in its reader threads: `transport.SerialLink` (pyserial
 ``serial_for_url`` on the pty) → `bridge.GripperBridge` (parse, observer, grasp-force
-controller in closed loop at 10 N) → ``T<volts>`` written, plus two `netft.NetFTClient`
+controller in closed loop at 10 N) → ``T<volts>`` written, plus two `netft_client.NetFTClient`
 threads at 1 kHz each feeding the bridge.
 
 Latency per telemetry line = ``time.monotonic()`` right after the command write returned −
@@ -18,11 +18,22 @@ command was written for it. Prints a table; never asserts.
 ``--node`` runs the same measurement through the real ``gripper_driver`` lifecycle node in this
 process (rclpy, publishing from the reader thread, watchdog, embedded Net F/T clients on
 127.0.0.6/127.0.0.5 served by the emulator child process).
+
+``--hold`` (issue 16 item 2) holds grasps through the real node under host load: for each
+target (``--targets``, default 10 N and 40 N) and each real-time setting (``--rt``, default
+on = ``realtime.priority`` 10 and off = 0), two CPU-burning processes (``--burners``) run
+beside the driver for ``--duration`` seconds while the node holds the object closed-loop on
+the emulator's Net F/T. Printed per case: 0 V dropouts (safe voltage written while the grasp
+was commanded), disarms, link stale/fault events, host stalls (telemetry processed late while
+the firmware kept sending), catch-up lines, resume ramps, and the force error (F/T grasp force
+− target) max and RMS over the hold. The emulator (standing for the firmware) runs
+``SCHED_FIFO`` ``--emulator-priority`` in every case.
 """
 from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import subprocess
 import sys
@@ -38,8 +49,10 @@ _SRC = str(_ROOT / 'src' / 'slip_gripper_driver')
 if _SRC not in sys.path:
     sys.path.insert(0, _SRC)
 
-from slip_gripper_driver.core.bridge import BridgeParams, GripperBridge  # noqa: E402
-from slip_gripper_driver.core.netft import ForceTorqueScale, FtSample, NetFTClient  # noqa: E402
+from slip_gripper_driver.core.bridge import GripperBridge  # noqa: E402
+from slip_gripper_driver.core.bridge_params import BridgeParams  # noqa: E402
+from slip_gripper_driver.core.ft_scale import ForceTorqueScale  # noqa: E402
+from slip_gripper_driver.core.netft_client import FtSample, NetFTClient  # noqa: E402
 from slip_gripper_driver.core.protocol import LineKind  # noqa: E402
 from slip_gripper_driver.core.realtime import (RealtimeParams, ThreadTuning,  # noqa: E402
                                                freeze_gc)
@@ -237,7 +250,7 @@ def run_node(duration_s: float, with_ft: bool, rt: RealtimeParams,
     done = np.full(n_max, np.nan)
     count = [0]
     publish_us: list[float] = []
-    original = node._on_result  # noqa: SLF001 - the bench wraps the node's result callback
+    original = node._on_result
 
     def on_result(result: object) -> None:
         t_done = node.now()
@@ -252,7 +265,7 @@ def run_node(duration_s: float, with_ft: bool, rt: RealtimeParams,
         original(result)
         publish_us.append((time.perf_counter() - t0) * 1e6)
 
-    node._on_result = on_result  # noqa: SLF001 - before configure: the core binds it there
+    node._on_result = on_result
     executor = MultiThreadedExecutor(context=context)
     executor.add_node(node)
     # As ``main`` does: the spinning thread (and the executor workers it starts) get the
@@ -266,7 +279,7 @@ def run_node(duration_s: float, with_ft: bool, rt: RealtimeParams,
             raise RuntimeError(f'gripper_driver did not start: {node.last_error}')
         time.sleep(0.5)
         if with_ft:
-            reply = node._srv_bias(Trigger.Request(), Trigger.Response())  # noqa: SLF001
+            reply = node._srv_bias(Trigger.Request(), Trigger.Response())
             print(f'bias: {reply.message}')
         node.core.bridge.set_grasp_force(10.0, node.now())
         time.sleep(WARMUP_S)
@@ -277,7 +290,7 @@ def run_node(duration_s: float, with_ft: bool, rt: RealtimeParams,
         cpu1, wall1 = time.process_time(), time.monotonic()
         status = node.core.bridge.status(node.now())
         diag = node.core.bridge.diagnostics(node.now())
-        tuning = node._tuning  # noqa: SLF001 - what the reader threads reported
+        tuning = node._tuning
     finally:
         from slip_cell_common.node_main import shutdown_lifecycle
         shutdown_lifecycle(node)
@@ -320,6 +333,152 @@ def run_node(duration_s: float, with_ft: bool, rt: RealtimeParams,
           f'armed at the end: {diag.armed}')
 
 
+def _burn() -> subprocess.Popen:
+    return subprocess.Popen([sys.executable, '-c', 'while True: pass'])
+
+
+def run_hold(duration_s: float, target_n: float, rt_priority: int, burners: int,
+             emulator_priority: int) -> dict[str, float]:
+    """Hold ``target_n`` [N] for ``duration_s`` [s] through the real node beside CPU burners.
+
+    Returns:
+        The figures printed for the case.
+    """
+    import rclpy
+    from rclpy.context import Context
+    from rclpy.executors import MultiThreadedExecutor
+    from rclpy.lifecycle import TransitionCallbackReturn
+    from rclpy.parameter import Parameter
+    from rclpy.signals import SignalHandlerOptions
+    from std_srvs.srv import Trigger
+
+    from slip_cell_common.node_main import shutdown_lifecycle
+    from slip_cell_common.testing import SpinThread
+    from slip_gripper_driver.gripper_driver_node import GripperDriverNode
+
+    tmp = tempfile.mkdtemp(prefix='bench_gripper_hold_')
+    port = os.path.join(tmp, 'gripper')
+    box_port = _free_port('127.0.0.6')
+    hosts = ('127.0.0.6', '127.0.0.5')
+    proc, _ = _start_emulator(port, duration_s + 30.0, False,
+                              [f'{h}:{box_port}' for h in hosts], priority=emulator_priority)
+    context = Context()
+    rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)
+    overrides = {'autostart': False, 'serial.port': port, 'ft.mode': 'embedded',
+                 'ft.finger_1.address': hosts[0], 'ft.finger_2.address': hosts[1],
+                 'ft.port': box_port, 'ft.read_config': False, 'ft.counts_per_force': 1.0e6,
+                 'ft.counts_per_torque': 1.0e6, 'realtime.priority': rt_priority}
+    node = GripperDriverNode(context=context, parameter_overrides=[
+        Parameter(k, value=v) for k, v in overrides.items()])
+    n_max = int((duration_s + 10.0) / PERIOD_S) + 1000
+    force = np.full(n_max, np.nan)
+    volts = np.full(n_max, np.nan)
+    armed = np.zeros(n_max, dtype=bool)
+    count = [0]
+    recording = [False]
+    events: list[tuple[str, str]] = []
+    original_result, original_event = node._on_result, node._on_event
+
+    def on_result(result: object) -> None:
+        status = result.status  # type: ignore[attr-defined]
+        if recording[0] and status is not None and result.command is not None:  # type: ignore
+            i = count[0]
+            if i < n_max:
+                force[i], volts[i], armed[i] = (status.measured_grasp_force,
+                                                status.voltage_cmd, status.armed)
+                count[0] = i + 1
+        original_result(result)
+
+    def on_event(t: float, kind: str, message: str) -> None:
+        if recording[0]:
+            events.append((kind, message))
+        original_event(t, kind, message)
+
+    node._on_result = on_result
+    node._on_event = on_event
+    executor = MultiThreadedExecutor(context=context)
+    executor.add_node(node)
+    spinner = SpinThread(executor, on_start=node.tune_spin_thread)
+    spinner.start()
+    burning: list[subprocess.Popen] = []
+    try:
+        ok = TransitionCallbackReturn.SUCCESS
+        if node.trigger_configure() != ok or node.trigger_activate() != ok:
+            raise RuntimeError(f'gripper_driver did not start: {node.last_error}')
+        time.sleep(0.5)
+        reply = node._srv_bias(Trigger.Request(), Trigger.Response())
+        if not reply.success:
+            raise RuntimeError(f'bias failed: {reply.message}')
+        burning = [_burn() for _ in range(burners)]
+        node.core.bridge.set_grasp_force(target_n, node.now())
+        time.sleep(2.0)  # close and settle
+        diag0 = node.core.bridge.diagnostics(node.now())
+        recording[0] = True
+        cpu0, wall0 = time.process_time(), time.monotonic()
+        time.sleep(duration_s)
+        recording[0] = False
+        cpu1, wall1 = time.process_time(), time.monotonic()
+        diag = node.core.bridge.diagnostics(node.now())
+        tuning = sorted(set(node._tuning.results.values()))
+    finally:
+        for burner in burning:
+            burner.kill()
+            burner.wait()
+        spinner.stop()  # before the endpoints go: no wait set built over destroyed entities
+        shutdown_lifecycle(node)
+        executor.shutdown()
+        node.destroy_node()
+        rclpy.try_shutdown(context=context)
+        proc.send_signal(2)
+    out, _ = proc.communicate(timeout=30.0)
+    emu = json.loads(out.strip().splitlines()[-1]) if out.strip() else {}
+    n = count[0]
+    f, v, a = force[:n], volts[:n], armed[:n]
+    error = f - target_n
+    valid = error[np.isfinite(error)]
+    dropouts = int(np.sum(v == 0.0))
+    disarms = int(np.sum(a[:-1] & ~a[1:])) + (0 if n == 0 or a[0] else 1)
+    figures = {
+        'lines': n, 'expected': int(round((wall1 - wall0) / PERIOD_S)),
+        'dropouts_0V': dropouts, 'disarms': disarms,
+        'stale': diag.stale_events - diag0.stale_events,
+        'faults': diag.link_faults - diag0.link_faults,
+        'host_stalls': diag.host_stalls - diag0.host_stalls,
+        'max_host_stall_ms': 1e3 * diag.max_host_stall_s,
+        'catch_up_lines': diag.catch_up_lines - diag0.catch_up_lines,
+        'resume_ramps': diag.resume_ramps - diag0.resume_ramps,
+        'err_max': float(np.max(np.abs(valid))) if valid.size else math.nan,
+        'err_rms': float(np.sqrt(np.mean(valid ** 2))) if valid.size else math.nan,
+        'within_1N': float(np.mean(np.abs(valid) <= 1.0)) if valid.size else math.nan,
+        'ft_missing': int(np.sum(~np.isfinite(error))),
+        'cpu': 100 * (cpu1 - cpu0) / (wall1 - wall0),
+        'emu_late_ticks': emu.get('late_ticks', -1),
+        'emu_max_gap_ms': 1e3 * emu.get('max_send_gap_s', math.nan),
+        'emu_long_gaps': emu.get('long_gaps', -1),
+        'malformed': emu.get('malformed_commands', -1)}
+    print(f'hold {target_n:.0f} N for {duration_s:.0f} s, realtime.priority {rt_priority} '
+          f'({", ".join(tuning) or "?"}), {burners} CPU burners beside the driver')
+    print(f'  commands written           {n:10d}   (≈ {figures["expected"]} periods)')
+    print(f'  0 V dropouts               {dropouts:10d}   disarms {disarms}   '
+          f'stale {figures["stale"]}   link faults {figures["faults"]}')
+    print(f'  host stalls                {figures["host_stalls"]:10d}   (longest '
+          f'{figures["max_host_stall_ms"]:.0f} ms over the run; catch-up lines '
+          f'{figures["catch_up_lines"]}, resume ramps {figures["resume_ramps"]})')
+    print(f'  force error (F/T − target) max {figures["err_max"]:6.2f} N   RMS '
+          f'{figures["err_rms"]:5.3f} N   within ±1 N {100 * figures["within_1N"]:5.1f} %   '
+          f'(lines without a fresh F/T value: {figures["ft_missing"]})')
+    print(f'  emulator (the firmware)    {figures["emu_long_gaps"]:10d}   sends > 20 ms after '
+          f'the previous one (real link gaps, whole run; longest '
+          f'{figures["emu_max_gap_ms"]:.1f} ms); late ticks {figures["emu_late_ticks"]}')
+    print(f'  driver CPU {figures["cpu"]:5.1f} % of one core; malformed commands at the '
+          f'firmware {figures["malformed"]}', flush=True)
+    for kind, message in events[:8]:
+        print(f'    event {kind}: {message}')
+    if len(events) > 8:
+        print(f'    ... {len(events) - 8} more events')
+    return figures
+
+
 def main() -> int:
     """Parse arguments and run."""
     parser = argparse.ArgumentParser(description=__doc__.split('\n')[0])
@@ -329,6 +488,15 @@ def main() -> int:
     parser.add_argument('--switch-interval-us', type=float, default=0.0,
                         help='sys.setswitchinterval for this process [µs]; 0 = Python default '
                              '(5000 µs) for the core run, the node\'s 500 µs with --node')
+    parser.add_argument('--hold', action='store_true',
+                        help='hold grasps through the node beside CPU burners (issue 16): one '
+                             'case per --targets x --rt, each for --duration seconds')
+    parser.add_argument('--targets', type=float, nargs='+', default=[10.0, 40.0],
+                        help='--hold: grasp force targets [N] (default 10 40)')
+    parser.add_argument('--rt', choices=('on', 'off'), nargs='+', default=['on', 'off'],
+                        help='--hold: realtime.priority 10 (on) and/or 0 (off) (default both)')
+    parser.add_argument('--burners', type=int, default=2,
+                        help='--hold: CPU-burning processes beside the driver (default 2)')
     parser.add_argument('--node', action='store_true',
                         help='go through the real gripper_driver lifecycle node (rclpy, '
                              'publishers, watchdog) instead of the bare core')
@@ -338,12 +506,16 @@ def main() -> int:
                              f'(node default {defaults.priority}; 0 = normal scheduling)')
     parser.add_argument('--no-freeze-gc', action='store_true',
                         help='realtime.freeze_gc false (no gc.freeze after set-up)')
-    parser.add_argument('--emulator-priority', type=int, default=5,
+    parser.add_argument('--emulator-priority', type=int, default=None,
                         help='SCHED_FIFO priority of the emulator child (it stands for the '
-                             'firmware, whose timing does not depend on the host load); below '
-                             'the driver\'s so it never preempts a GIL holder of the driver '
-                             '(at 20 it did: node p99 559 µs, 6 misses in 30 s); 0 = off')
+                             'firmware, whose timing does not depend on the host load); default '
+                             '5, below the driver\'s so it never preempts a GIL holder of the '
+                             'driver (at 20 it did: node p99 559 µs, 6 misses in 30 s); with '
+                             '--hold 20, above it: a starved emulator stops sending, which is a '
+                             'real link gap and not what --hold measures; 0 = off')
     args = parser.parse_args()
+    if args.emulator_priority is None:
+        args.emulator_priority = 20 if args.hold else 5
     rt = RealtimeParams(priority=args.priority, freeze_gc=not args.no_freeze_gc)
     if args.switch_interval_us > 0.0:
         sys.setswitchinterval(args.switch_interval_us * 1e-6)
@@ -352,6 +524,14 @@ def main() -> int:
         sys.setswitchinterval(SWITCH_INTERVAL_S)
     print(f'GIL switch interval {sys.getswitchinterval() * 1e6:.0f} µs')
     duration = 5.0 if args.quick else args.duration
+    if args.hold:
+        from slip_gripper_driver.gripper_driver_node import SWITCH_INTERVAL_S
+        sys.setswitchinterval(SWITCH_INTERVAL_S)
+        for rt in args.rt:
+            for target in args.targets:
+                run_hold(duration, target, 10 if rt == 'on' else 0, args.burners,
+                         args.emulator_priority)
+        return 0
     if args.node:
         run_node(duration, not args.no_ft, rt, args.emulator_priority)
     else:

@@ -15,15 +15,16 @@ import time
 from pathlib import Path
 
 from slip_control.core.contact import ContactProperties, ContactSource, FingerContact
-from slip_control.core.estimator import ContactEstimator, EstimationPhase
+from slip_control.core.contact_estimator import ContactEstimator, EstimationPhase
 from slip_control.core.mode_switch import ModeRequest, build_controller
 from slip_control.core.params import ContactEstimatorParams, SlipControllerParams
 from slip_control.core.signals import SensorSnapshot
-from slip_control.ros_conv import twist_from_msg, wrench_from_msg
+from slip_control.slip_msgs_conv import twist_from_msg, wrench_from_msg
 from slip_cell_common.bag_io import bag_info, read_messages, stamp_s
+from slip_cell_common.core import names
 
-SENSORS = ('/finger_1/ft/wrench', '/finger_2/ft/wrench', '/finger_1/slip/twist',
-           '/finger_2/slip/twist')
+SENSORS = tuple(names.absolute(n) for n in (names.ft_wrench(1), names.ft_wrench(2),
+                                            names.slip_twist(1), names.slip_twist(2)))
 
 
 def main() -> int:
@@ -46,7 +47,7 @@ def main() -> int:
         print('bench_replay: no bag with the sensor topics (run make bags)')
         return 0
     t0 = time.perf_counter()
-    msgs = read_messages(ns.bag, [t for t in SENSORS])
+    msgs = read_messages(ns.bag, list(SENSORS))
     events = sorted(((stamp_s(m), topic, m) for topic in SENSORS for _, m in msgs[topic]),
                     key=lambda e: e[0])
     t_read = time.perf_counter() - t0

@@ -35,7 +35,7 @@ import sys
 import time
 import timeit
 from pathlib import Path
-from typing import Callable
+from collections.abc import Callable
 
 _ROOT = Path(__file__).resolve().parents[1]
 for _pkg in ('friction_models', 'slip_gripper_driver', 'slip_velocity_sensor'):

@@ -35,8 +35,9 @@ WARMUP_S = 6.0
 SIM_TASK = 'sim_gripper: realtime_factor'
 
 
-def _stamp(msg) -> float:  # noqa: ANN001 - any stamped message
-    return msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+def _stamp(msg) -> float:
+    from slip_cell_common.time_conv import stamp_to_seconds
+    return stamp_to_seconds(msg.header.stamp)
 
 
 def _proc_cpu_ticks(pid: int) -> int:
@@ -93,8 +94,10 @@ def main() -> int:
     from rosgraph_msgs.msg import Clock
     from slip_msgs.msg import GripperStatus
 
+    from slip_cell_common.core import names
     from slip_cell_common.qos import SENSOR_SUB
     from slip_cell_common.testing import SpinThread
+    from slip_cell_common.time_conv import stamp_to_seconds
 
     cmd = [sys.executable, '-m', 'slip_bringup.run_graph', '--sim']
     if args.alone:
@@ -110,8 +113,8 @@ def main() -> int:
     clock: list[tuple[float, float]] = []
     diag: dict[str, dict[str, str]] = {}
 
-    def keep(name: str):  # noqa: ANN202
-        def cb(msg) -> None:  # noqa: ANN001
+    def keep(name: str):
+        def cb(msg) -> None:
             if recording.is_set():
                 with lock:
                     stamps[name].append(_stamp(msg))
@@ -120,8 +123,7 @@ def main() -> int:
     def on_clock(msg: Clock) -> None:
         if recording.is_set():
             with lock:
-                clock.append((time.monotonic(),
-                              msg.clock.sec + msg.clock.nanosec * 1e-9))
+                clock.append((time.monotonic(), stamp_to_seconds(msg.clock)))
 
     def on_diag(msg: DiagnosticArray) -> None:
         for status in msg.status:
@@ -129,11 +131,11 @@ def main() -> int:
                 with lock:
                     diag['last'] = {kv.key: kv.value for kv in status.values}
 
-    node.create_subscription(GripperStatus, 'gripper/status', keep('status'), SENSOR_SUB)
-    node.create_subscription(WrenchStamped, 'finger_1/ft/wrench', keep('wrench'), SENSOR_SUB)
-    node.create_subscription(TwistStamped, 'finger_1/slip/twist', keep('twist'), SENSOR_SUB)
-    node.create_subscription(Clock, '/clock', on_clock, SENSOR_SUB)
-    node.create_subscription(DiagnosticArray, '/diagnostics', on_diag, 10)
+    node.create_subscription(GripperStatus, names.GRIPPER_STATUS, keep('status'), SENSOR_SUB)
+    node.create_subscription(WrenchStamped, names.ft_wrench(1), keep('wrench'), SENSOR_SUB)
+    node.create_subscription(TwistStamped, names.slip_twist(1), keep('twist'), SENSOR_SUB)
+    node.create_subscription(Clock, names.CLOCK, on_clock, SENSOR_SUB)
+    node.create_subscription(DiagnosticArray, names.DIAGNOSTICS, on_diag, 10)
     executor = SingleThreadedExecutor()
     executor.add_node(node)
     spinner = SpinThread(executor).start()
@@ -146,9 +148,9 @@ def main() -> int:
             return 1
         # The drivers publish finger_k/ft/wrench only once biased: bias as a user would.
         from std_srvs.srv import Trigger
-        client = node.create_client(Trigger, 'gripper/bias_ft')
+        client = node.create_client(Trigger, names.GRIPPER_BIAS_FT_SRV)
         if not client.wait_for_service(timeout_sec=10.0):
-            print('gripper/bias_ft not available', file=sys.stderr)
+            print(f'{names.GRIPPER_BIAS_FT_SRV} not available', file=sys.stderr)
             return 1
         reply = client.call(Trigger.Request(), timeout_sec=10.0)
         if reply is None or not reply.success:
@@ -182,14 +184,14 @@ def main() -> int:
     hz = os.sysconf('SC_CLK_TCK')
     ticks = int(last['ticks']) - int(first['ticks'])
     late = int(last['late_ticks']) - int(first['late_ticks'])
-    dropped = float(last['dropped_sim_s']) - float(first['dropped_sim_s'])
+    dropped = float(last['behind_real_time_s']) - float(first['behind_real_time_s'])
     c = np.array(clock)
     sim_span = float(c[-1, 1] - c[0, 1]) if len(c) > 1 else float('nan')
     wall_span = float(c[-1, 0] - c[0, 0]) if len(c) > 1 else float('nan')
     print(f'simulated cell as a node: {"sim_gripper alone" if args.alone else "full sim graph"}, '
           f'{wall:.0f} s measured after {WARMUP_S:.0f} s warm-up')
     print(f'  simulator ticks             {ticks:8d}   late {late} '
-          f'({100.0 * late / max(ticks, 1):.2f} %; target < 1 %), dropped sim time '
+          f'({100.0 * late / max(ticks, 1):.2f} %; target < 1 %), sim time behind '
           f'{dropped:.3f} s')
     print(f'  real-time factor (/clock)   {sim_span / wall_span:8.3f}   '
           f'({sim_span:.2f} sim s in {wall_span:.2f} wall s)')

@@ -27,14 +27,15 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-for pkg in ('slip_control', 'slip_gripper_driver'):
+for pkg in ('slip_control', 'slip_cell_common'):
     sys.path.insert(0, str(ROOT / 'src' / pkg))
 
 from slip_control.core.contact import ContactProperties, ContactSource, FingerContact  # noqa: E402
 from slip_control.core.controllers import (ControlContact, HingeController,  # noqa: E402
                                            HoldController, LinearController, OffController,
                                            RotationalController, SlipController, SlipMode)
-from slip_control.core.estimator import ContactEstimator, EstimationPhase  # noqa: E402
+from slip_control.core.contact_estimator import ContactEstimator, EstimationPhase  # noqa: E402
+from slip_control.core.controller_host import ControllerHost  # noqa: E402
 from slip_control.core.mode_switch import ModeRequest, build_controller  # noqa: E402
 from slip_control.core.params import (ContactEstimatorParams,  # noqa: E402
                                       EstimatorOnlineParams, SlipControllerParams)
@@ -94,8 +95,10 @@ def _dds(n_twists: int) -> None:
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.node import Node
     from rclpy.qos import QoSProfile, ReliabilityPolicy
-    from slip_control.ros_conv import nanoseconds_to_stamp, properties_to_msg
+    from slip_cell_common.time_conv import nanoseconds_to_stamp
+    from slip_control.slip_msgs_conv import properties_to_msg
     from slip_cell_common.calls import call_service, spin_until
+    from slip_cell_common.core import names
     from slip_cell_common.qos import LATCHED, SENSOR_PUB
     from slip_cell_common.testing import NodeProcess
     from slip_msgs.msg import ContactProperties as ContactPropertiesMsg
@@ -115,14 +118,14 @@ def _dds(n_twists: int) -> None:
     node = Node('bench_slip_dds')
     ex = SingleThreadedExecutor()
     ex.add_node(node)
-    wpub = [node.create_publisher(WrenchStamped, f'finger_{k}/ft/wrench', SENSOR_PUB)
+    wpub = [node.create_publisher(WrenchStamped, names.ft_wrench(k), SENSOR_PUB)
             for k in (1, 2)]
-    tpub = [node.create_publisher(TwistStamped, f'finger_{k}/slip/twist', SENSOR_PUB)
+    tpub = [node.create_publisher(TwistStamped, names.slip_twist(k), SENSOR_PUB)
             for k in (1, 2)]
-    ppub = node.create_publisher(ContactPropertiesMsg, 'contact/properties', LATCHED)
+    ppub = node.create_publisher(ContactPropertiesMsg, names.CONTACT_PROPERTIES, LATCHED)
     arrivals: list[int] = []
     node.create_subscription(
-        GraspForceCommand, 'gripper/grasp_force_cmd',
+        GraspForceCommand, names.GRASP_FORCE_CMD,
         lambda m: arrivals.append(time.perf_counter_ns()),
         QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE))
     clock = node.get_clock()
@@ -131,7 +134,7 @@ def _dds(n_twists: int) -> None:
         stamp = nanoseconds_to_stamp(clock.now().nanoseconds)
         for k, pub in enumerate(wpub, start=1):
             m = WrenchStamped()
-            m.header.stamp, m.header.frame_id = stamp, f'ft_sensor_{k}'
+            m.header.stamp, m.header.frame_id = stamp, names.ft_sensor_frame(k)
             m.wrench.force.x, m.wrench.force.y, m.wrench.force.z = 0.3, 0.8, -6.0
             m.wrench.torque.z = 1e-3
             pub.publish(m)
@@ -141,7 +144,7 @@ def _dds(n_twists: int) -> None:
         msgs = []
         for k in (2, 1):
             m = TwistStamped()
-            m.header.stamp, m.header.frame_id = stamp, f'vel_sensor_{k}'
+            m.header.stamp, m.header.frame_id = stamp, names.vel_sensor_frame(k)
             m.twist.linear.x = 0.001
             msgs.append((k, m))
         tpub[1].publish(msgs[0][1])
@@ -157,7 +160,7 @@ def _dds(n_twists: int) -> None:
             wrenches()
             before = len(arrivals)
             t0 = twists()
-            got = spin_until(ex, lambda: len(arrivals) > before, 0.05, step_s=0.001)
+            got = spin_until(ex, lambda before=before: len(arrivals) > before, 0.05, step_s=0.001)
             if got and latencies is not None:
                 latencies.append(arrivals[before] - t0)
             elif not got:
@@ -174,7 +177,7 @@ def _dds(n_twists: int) -> None:
     try:
         props = _props()
         ppub.publish(properties_to_msg(props, nanoseconds_to_stamp(clock.now().nanoseconds)))
-        client = node.create_client(SetSlipMode, 'slip_control/set_mode')
+        client = node.create_client(SetSlipMode, names.SLIP_SET_MODE_SRV)
         ok = False
         deadline = time.monotonic() + 20.0
         while not ok and time.monotonic() < deadline:
@@ -182,7 +185,8 @@ def _dds(n_twists: int) -> None:
                                10.0)
             ok = res is not None and res.success
             if not ok:
-                ppub.publish(properties_to_msg(props, nanoseconds_to_stamp(clock.now().nanoseconds)))
+                ppub.publish(properties_to_msg(props,
+                                               nanoseconds_to_stamp(clock.now().nanoseconds)))
                 spin_until(ex, lambda: False, 0.2)
         if not ok:
             sys.exit(f'slip_controller did not accept HOLD; log: {log}')
@@ -244,8 +248,24 @@ def main() -> None:
         samples.append(time.perf_counter_ns() - t0)
     rows.append(('controller step HOLD safe-hold (stale velocity)', samples))
 
-    # Mode switch: validate + build a complete controller.
+    # The node's host around HOLD: four samples in, stale check + debounce, the step.
     props = _props()
+    samples = []
+    for _ in range(repeats):
+        host = ControllerHost(p, props)
+        host.switch(ModeRequest(int(SlipMode.HOLD)), snaps[0].twist_1.stamp)  # type: ignore
+        for i, s in enumerate(snaps):
+            t = s.twist_1.stamp + 0.0005  # type: ignore[union-attr]
+            t0 = time.perf_counter_ns()
+            host.on_wrench(1, s.wrench_1)  # type: ignore[arg-type]
+            host.on_wrench(2, s.wrench_2)  # type: ignore[arg-type]
+            host.on_twist(2, s.twist_2)  # type: ignore[arg-type]
+            if host.on_twist(1, s.twist_1):  # type: ignore[arg-type]
+                host.step(t, steady=float(i))
+            samples.append(time.perf_counter_ns() - t0)
+    rows.append(('controller host HOLD (4 samples in + step)', samples))
+
+    # Mode switch: validate + build a complete controller.
     samples = []
     req = ModeRequest(int(SlipMode.LINEAR), duration=2.0, distance=0.02)
     for i in range(n):

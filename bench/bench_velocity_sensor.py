@@ -28,7 +28,7 @@ import time
 from collections import deque
 from multiprocessing.connection import Connection
 from pathlib import Path
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 
@@ -38,6 +38,7 @@ for _pkg in ('slip_velocity_sensor', 'slip_gripper_driver'):
     if _path not in sys.path:
         sys.path.insert(0, _path)
 
+from slip_cell_common.core import names  # noqa: E402
 from slip_cell_common.core.serial_transport import SerialLink  # noqa: E402
 from slip_velocity_sensor.core.emulator import (EmulatorParams, FirmwareEmulator,  # noqa: E402
                                                 PtyEmulator, SineTwist)
@@ -45,7 +46,7 @@ from slip_velocity_sensor.core.fusion import RigidBodyFusion  # noqa: E402
 from slip_velocity_sensor.core.protocol import LineParser, LineSplitter  # noqa: E402
 from slip_velocity_sensor.core.session import Sample, SensorSession  # noqa: E402
 
-RATE_HZ = 120.0
+RATE_HZ = 143.0  # mean line rate of the firmware (6-8 ms periods)
 MOTION = SineTwist(vx=0.03, vy=-0.02, omega=0.8, frequency=0.7)
 _TWIST = struct.Struct('<iI16s6d')           # header stamp, frame id, linear, angular
 _PLANAR = struct.Struct('<iI16s9dBbd?')      # PlanarSlip fields
@@ -78,8 +79,11 @@ class RosPublisher:
         import rclpy
         from geometry_msgs.msg import TwistStamped
         from rclpy.context import Context
+
+        from slip_cell_common.time_conv import seconds_to_stamp
         self._rclpy = rclpy
         self._msg = TwistStamped
+        self._stamp = seconds_to_stamp
         self._context = Context()
         rclpy.init(context=self._context)
         self._node = rclpy.create_node('bench_velocity_sensor', context=self._context)
@@ -87,10 +91,8 @@ class RosPublisher:
 
     def publish(self, s: Sample) -> None:
         msg = self._msg()
-        sec = math.floor(s.stamp)
-        msg.header.stamp.sec = sec
-        msg.header.stamp.nanosec = int((s.stamp - sec) * 1e9)
-        msg.header.frame_id = 'vel_sensor_1'
+        msg.header.stamp = self._stamp(s.stamp)
+        msg.header.frame_id = names.vel_sensor_frame(1)
         msg.twist.linear.x, msg.twist.linear.y, msg.twist.angular.z = s.vx, s.vy, s.omega
         self._pub.publish(msg)
 
@@ -256,7 +258,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f'velocity sensor host path, {RATE_HZ:.0f} Hz per sensor, publish={args.publish} '
           f'(python {sys.version.split()[0]}, {os.cpu_count()} cpu, load {load})')
     print(f'\nCPU per line (best of {repeats} passes over {n_lines} emulator lines)')
-    print(f'{"stage":<46} {"us/line":>9} {"% core @120 Hz":>15}')
+    print(f'{"stage":<46} {"us/line":>9} {f"% core @{RATE_HZ:.0f} Hz":>15}')
     for name, per_line in stages:
         print(f'{name:<46} {per_line * 1e6:9.2f} {100.0 * per_line * RATE_HZ:14.3f}%')
     print(f'\nLatency, pty emulator, {lat["lines"]} lines in {duration:.0f} s '
@@ -264,7 +266,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f'{"path":<46} {"p50 us":>8} {"p99 us":>8} {"max us":>9}')
     print(f'{"arrival stamp -> published sample":<46} {_fmt(lat["arrival"])}')
     print(f'{"emulator write -> published sample":<46} {_fmt(lat["emit"])}')
-    print(f'\nCPU of the host process while streaming, % of one core')
+    print('\nCPU of the host process while streaming, % of one core')
     print(f'{"reader thread + parse + session + publish":<46} {lat["process_cpu_pct"]:8.2f}')
     print(f'{"serial reader alone (same link, lines dropped)":<46} '
           f'{reader_only["process_cpu_pct"]:8.2f}')

@@ -40,7 +40,7 @@ def _drive(events: list[tuple[float, str, Any]], on_step: Any,
            t0: float = -math.inf, t1: float = math.inf) -> None:
     """Feed events into a SensorSnapshot and call ``on_step(snapshot, t)`` per finger-1 twist."""
     from slip_control.core.signals import SensorSnapshot
-    from slip_control.ros_conv import twist_from_msg, wrench_from_msg
+    from slip_control.slip_msgs_conv import twist_from_msg, wrench_from_msg
     snap = SensorSnapshot()
     for t, topic, msg in events:
         if t > t1:
@@ -74,9 +74,9 @@ def test_expected_experiments_exist() -> None:
 
 @pytest.mark.parametrize('name', ['est_contact_cardboard', 'est_contact_plastic'])
 def test_estimation_replay_reproduces_the_recorded_estimate(name: str) -> None:
-    from slip_control.core.estimator import ContactEstimator, EstimationPhase
+    from slip_control.core.contact_estimator import ContactEstimator, EstimationPhase
     from slip_control.core.params import ContactEstimatorParams
-    from slip_control.ros_conv import properties_from_msg
+    from slip_control.slip_msgs_conv import properties_from_msg
     msgs = read_messages(_bag(name))
     published = [properties_from_msg(m) for _, m in msgs['/contact/properties']
                  if m.source == 1 and m.valid]
@@ -144,7 +144,7 @@ def test_slip_bags_reach_the_target_and_replay_through_the_core(name: str, mode:
                                                                 unit_tol: float) -> None:
     from slip_control.core.mode_switch import ModeRequest, build_controller
     from slip_control.core.params import SlipControllerParams
-    from slip_control.ros_conv import properties_from_msg
+    from slip_control.slip_msgs_conv import properties_from_msg
     msgs = read_messages(_bag(name))
     t0, t1, track = _segment(msgs, mode)
     # Physical outcome recorded by the simulator.

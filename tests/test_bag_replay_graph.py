@@ -14,6 +14,7 @@ from typing import Any
 import pytest
 
 from slip_cell_common.bag_io import read_messages, stamp_s
+from slip_cell_common.time_conv import stamp_to_seconds
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
@@ -57,7 +58,7 @@ def test_estimator_node_reproduces_the_recorded_estimate_from_the_bag(
     executor.add_node(node)
     clock: list[float] = []
     node.create_subscription(Clock, '/clock',
-                             lambda m: clock.append(m.clock.sec + m.clock.nanosec * 1e-9), 10)
+                             lambda m: clock.append(stamp_to_seconds(m.clock)), 10)
     props: list[ContactProperties] = []
     node.create_subscription(ContactProperties, 'contact/properties', props.append, LATCHED)
     start_client = node.create_client(StartEstimation, 'contact/start')

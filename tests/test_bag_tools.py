@@ -105,7 +105,8 @@ def test_record_in_process_then_replay_in_another_process(ros_context, ros_env,
                              SENSOR_SUB)
     node.create_subscription(Clock, '/clock', clocks.append, 10)
     proc = NodeProcess.python_module('slip_bringup.bag_cli', [
-        'replay', str(bag), '--rate', '1.0', '--start-delay', '15', '--topic', 'gripper/*'], tmp_path / 'replay.log', ros_env)
+        'replay', str(bag), '--rate', '1.0', '--start-delay', '15', '--topic', 'gripper/*'],
+        tmp_path / 'replay.log', ros_env)
     try:
         spin_until(executor, lambda: not proc.running(), 30.0)
         spin_until(executor, lambda: False, 0.3)
@@ -120,3 +121,124 @@ def test_record_in_process_then_replay_in_another_process(ros_context, ros_env,
     assert got_cmd == [], 'command topics must not be replayed by default'
     assert len(clocks) >= len(got_status)
     assert 'replay finished' in proc.output()
+
+
+def test_recorded_bag_reads_like_rosbag2s_own_with_the_independent_mcap_reader(
+        ros_context, tmp_path: Path) -> None:
+    """Real publishers (one per QoS kind) → TopicRecorder → the ``mcap`` + ``mcap_ros2`` readers:
+    /tf as tf2_msgs/msg/TFMessage, schemas with their comments, latched topics received,
+    ``ros_distro: jazzy`` and the publishers' real offered QoS (depth 100) in metadata.yaml."""
+    import yaml
+    from geometry_msgs.msg import TransformStamped
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.node import Node
+    from slip_cell_common.bag_io import bag_info
+    from slip_cell_common.qos import LATCHED, SENSOR_PUB, overridable
+    from slip_cell_common.recorder import TopicRecorder
+    from slip_cell_common.testing import spin_until
+    from slip_msgs.msg import ContactProperties, GripperStatus
+    from std_msgs.msg import String
+    from tf2_msgs.msg import TFMessage
+
+    node = Node('bag_schema_probe', context=ros_context)
+    executor = SingleThreadedExecutor(context=ros_context)
+    executor.add_node(node)
+    urdf = '<robot name="probe"><link name="gripper_base_link"/></robot>'
+    tf_pub = node.create_publisher(TFMessage, '/tf', SENSOR_PUB,
+                                   qos_overriding_options=overridable())
+    tf_static = node.create_publisher(TFMessage, '/tf_static', LATCHED)
+    description = node.create_publisher(String, 'robot_description', LATCHED)
+    status_pub = node.create_publisher(GripperStatus, 'gripper/status', SENSOR_PUB,
+                                       qos_overriding_options=overridable())
+    props_pub = node.create_publisher(ContactProperties, 'contact/properties', LATCHED)
+    static = TransformStamped()
+    static.header.frame_id, static.child_frame_id = 'tool0', 'gripper_base_link'
+    static.transform.rotation.w = 1.0
+    tf_static.publish(TFMessage(transforms=[static]))
+    description.publish(String(data=urdf))
+    props_pub.publish(ContactProperties(preset_name='latched'))
+
+    bag = tmp_path / 'schema_bag'
+    recorder = TopicRecorder(node, bag, topics=('gripper/*', 'contact/*'))
+    sent = 0
+
+    def tick() -> None:
+        nonlocal sent
+        status_pub.publish(status_message(sent))
+        moving = TransformStamped()
+        moving.header.frame_id, moving.child_frame_id = 'gripper_base_link', 'finger_1'
+        moving.transform.translation.y = 0.001 * sent
+        moving.transform.rotation.w = 1.0
+        tf_pub.publish(TFMessage(transforms=[moving]))
+        sent += 1
+    timer = node.create_timer(0.01, tick)
+    try:
+        assert spin_until(executor, lambda: len(recorder.topics) >= 5
+                          and recorder.message_count >= 150, 20.0), recorder.topics
+    finally:
+        node.destroy_timer(timer)
+        recorder.stop()
+        executor.shutdown()
+        node.destroy_node()
+
+    with next(bag.glob('*.mcap')).open('rb') as fh:
+        reader = make_reader(fh, decoder_factories=[DecoderFactory()], validate_crcs=True)
+        summary = reader.get_summary()
+        channels = {c.topic: c for c in summary.channels.values()}
+        schemas = {c.topic: summary.schemas[c.schema_id] for c in channels.values()}
+        decoded: dict[str, list] = {}
+        for _, channel, _, msg in reader.iter_decoded_messages(log_time_order=True):
+            decoded.setdefault(channel.topic, []).append(msg)
+    assert {'/tf', '/tf_static', '/robot_description', '/gripper/status',
+            '/contact/properties'} <= set(channels)
+    assert schemas['/tf'].name == 'tf2_msgs/msg/TFMessage'
+    assert all(s.encoding == 'ros2msg' for s in schemas.values())
+    status_schema = schemas['/gripper/status'].data.decode()
+    assert '# [rad] firmware shaft angle, relative to power-up' in status_schema
+    assert '\nMSG: std_msgs/Header\n' in status_schema
+    assert '# Two-integer timestamp' in status_schema  # dependency text kept verbatim too
+    tf_schema = schemas['/tf'].data.decode()
+    assert '\nMSG: geometry_msgs/TransformStamped\n' in tf_schema
+    assert channels['/tf'].metadata['topic_type_hash'].startswith('RIHS01_')
+    assert 'depth: 100' in channels['/gripper/status'].metadata['offered_qos_profiles']
+
+    assert decoded['/tf_static'][0].transforms[0].child_frame_id == 'gripper_base_link'
+    assert decoded['/robot_description'][0].data == urdf
+    assert decoded['/contact/properties'][0].preset_name == 'latched'
+    ys = [m.transforms[0].transform.translation.y for m in decoded['/tf']]
+    assert len(ys) >= 50 and ys == sorted(ys)
+    assert decoded['/gripper/status'][5].motor_angle == pytest.approx(0.05)
+
+    meta = yaml.safe_load((bag / 'metadata.yaml').read_text())['rosbag2_bagfile_information']
+    assert meta['version'] == 9 and meta['ros_distro'] == 'jazzy'
+    offered = {t['topic_metadata']['name']: t['topic_metadata']['offered_qos_profiles']
+               for t in meta['topics_with_message_count']}
+    for topic in ('/gripper/status', '/tf'):
+        assert [(q['history'], q['depth'], q['reliability'], q['durability'])
+                for q in offered[topic]] == [('keep_last', 100, 'reliable', 'volatile')], topic
+    assert offered['/tf'][0]['deadline'] == {'sec': 9223372036, 'nsec': 854775807}
+    # A publisher without QoS-override parameters: what discovery tells, as rosbag2 stores it.
+    assert [(q['reliability'], q['durability']) for q in offered['/tf_static']] == \
+        [('reliable', 'transient_local')]
+    info = bag_info(bag)  # rosbags re-checks every type hash against the stored schemas
+    assert {t.name: t.count for t in info.topics}['/tf_static'] == 1
+    assert info.ros_distro == 'jazzy'
+
+
+def test_default_outputs_are_outside_the_source_tree(monkeypatch: pytest.MonkeyPatch,
+                                                     tmp_path: Path) -> None:
+    """Runner bags and demo outputs default to $SLIP_DATA_DIR or ~/.local/share/slip_cell."""
+    from slip_cell_common.bag_io import default_bag_directory, default_data_directory
+    from slip_control.core.params import ExperimentRunnerParams
+    monkeypatch.setenv('SLIP_DATA_DIR', str(tmp_path / 'data'))
+    assert default_bag_directory() == tmp_path / 'data' / 'bags'
+    monkeypatch.delenv('SLIP_DATA_DIR')
+    monkeypatch.delenv('XDG_DATA_HOME', raising=False)
+    monkeypatch.setenv('HOME', str(tmp_path / 'home'))
+    assert default_data_directory() == tmp_path / 'home' / '.local' / 'share' / 'slip_cell'
+    repo = Path(__file__).resolve().parents[1]
+    assert repo not in default_bag_directory().parents
+    # The runner's parameter default means "the data directory", not a relative 'bags'.
+    assert ExperimentRunnerParams().recording.directory == ''

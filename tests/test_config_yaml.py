@@ -43,6 +43,8 @@ OPTIONAL_NODES: list[tuple[str, str, str, tuple[str, ...]]] = [
      ('slip_control.core.params:SlipControllerParams',)),
     ('slip_control', 'experiment_runner.yaml', 'experiment_runner',
      ('slip_control.core.params:ExperimentRunnerParams',)),
+    ('slip_bringup', 'cell_markers.yaml', 'cell_markers',
+     ('slip_bringup.core.cell_markers:CellMarkersParams',)),
 ]
 
 
@@ -134,6 +136,26 @@ def test_checker_catches_a_wrong_default(tmp_path: Path) -> None:
         _check(*NODES[0], src=tmp_path)
 
 
+def test_checker_catches_a_core_field_that_never_reaches_the_yaml(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """A field added to a core class nested (flattened) in a node class is a node parameter."""
+    import dataclasses
+    from dataclasses import dataclass, field
+
+    from slip_gripper_driver.core.netft_params import FtStreamParams
+    from slip_gripper_driver.node_params import NetFTDriverParams
+
+    @dataclass(frozen=True)
+    class Extended(FtStreamParams):
+        added_probe_field: float = field(default=1.0, metadata={'range': (0.0, 2.0)})
+
+    stream = next(f for f in dataclasses.fields(NetFTDriverParams) if f.name == 'stream')
+    monkeypatch.setattr(stream, 'default_factory', Extended)
+    entry = next(e for e in OPTIONAL_NODES if e[2] == 'netft_driver')
+    with pytest.raises(AssertionError, match=r"parameters not listed: \['added_probe_field'\]"):
+        _check(*entry)
+
+
 @pytest.mark.parametrize('launch', sorted(SRC.glob('*/launch/*.launch.py')),
                          ids=lambda p: p.name)
 def test_launch_files_compile(launch: Path, tmp_path: Path) -> None:
@@ -148,3 +170,33 @@ def test_graph_files_name_existing_parameter_files(graph: Path) -> None:
         for ref in node.get('params', []):
             package, _, rel = ref.partition('/')
             assert (SRC / package / rel).is_file(), f'{graph.name}: {node["name"]} needs {ref}'
+
+
+@pytest.mark.ros
+@pytest.mark.parametrize('entry', NODES + OPTIONAL_NODES, ids=lambda e: e[2])
+def test_node_yaml_loads_into_typed_parameters(entry: tuple, ros_context: object) -> None:
+    """rclpy reads the file into the statically typed parameters unchanged (``2.0``, not ``2``).
+
+    A value rclpy refuses for the declared type or range would leave the default declared, and
+    an integer written for a double would be converted: both show up as a difference here.
+    """
+    from rclpy.node import Node
+
+    from slip_cell_common.param_binding import ParameterBinding
+    package, file, key, classes = entry
+    try:
+        loaded = [_load_class(ref) for ref in classes]
+    except (ImportError, AttributeError):
+        pytest.skip(f'{classes} not available yet')
+    path = SRC / package / 'config' / file
+    node = Node(key, context=ros_context, use_global_arguments=False, cli_args=[
+        '--ros-args', '--params-file', str(CELL_YAML), '--params-file', str(path)])
+    try:
+        for cls in loaded:
+            ParameterBinding(node, cls)
+        for name, value in _yaml_params(path, key).items():
+            declared = node.get_parameter(name).value
+            assert _same(value, tuple(declared) if isinstance(declared, list) else declared), \
+                f'{file}: {name} = {value!r} was declared as {declared!r}'
+    finally:
+        node.destroy_node()

@@ -43,6 +43,7 @@ def test_checker_catches_a_ros_import(tmp_path: Path) -> None:
 #: Which project packages each package may import. The direction is
 #: slip_msgs ← slip_cell_common ← {driver, velocity sensor, control};
 #: {driver, velocity sensor} ← friction_models (the simulated cell runs the drivers' host code);
+#: friction_models ← slip_control (the model-based slip laws run the friction models online);
 #: bring-up (graph runner, demo, bag tools, evaluation) on top of everything.
 PROJECT_PACKAGES = {'slip_msgs', 'slip_cell_common', 'slip_gripper_driver',
                     'slip_velocity_sensor', 'slip_control', 'friction_models', 'slip_bringup'}
@@ -50,7 +51,7 @@ LAYERS = {
     'slip_cell_common': {'slip_msgs'},
     'slip_gripper_driver': {'slip_msgs', 'slip_cell_common'},
     'slip_velocity_sensor': {'slip_msgs', 'slip_cell_common'},
-    'slip_control': {'slip_msgs', 'slip_cell_common'},
+    'slip_control': {'slip_msgs', 'slip_cell_common', 'friction_models'},
     'friction_models': {'slip_msgs', 'slip_cell_common', 'slip_gripper_driver',
                         'slip_velocity_sensor'},
     'slip_bringup': PROJECT_PACKAGES - {'slip_bringup'},
@@ -81,5 +82,25 @@ def test_packages_import_only_lower_layers(package: str) -> None:
 def test_layer_check_catches_an_upward_import(tmp_path: Path) -> None:
     module_dir = tmp_path / 'slip_control'
     module_dir.mkdir()
-    (module_dir / 'x.py').write_text('from friction_models.core.plant import Plant\n')
-    assert layer_violations('slip_control', module_dir) == {'slip_control/x.py': {'friction_models'}}
+    (module_dir / 'x.py').write_text('from slip_bringup.core.evaluation import scene\n')
+    assert layer_violations('slip_control', module_dir) == {'slip_control/x.py': {'slip_bringup'}}
+
+
+#: The friction_models modules slip_control may use: the models, never the simulated cell.
+CONTROL_MAY_USE_FROM_FRICTION_MODELS = {
+    'friction_models.core.limit_surface', 'friction_models.core.params',
+    'friction_models.core.reduced', 'friction_models.core.surfaces',
+    'friction_models.core.planar', 'friction_models.core.integrators'}
+
+
+def test_control_uses_the_friction_models_not_the_simulator() -> None:
+    used: set[str] = set()
+    for path in (SRC / 'slip_control' / 'slip_control').rglob('*.py'):
+        tree = ast.parse(path.read_text(), filename=str(path))
+        used |= {n.module for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)
+                 and n.module and n.module.startswith('friction_models')}
+        used |= {a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names
+                 if a.name.startswith('friction_models')}
+    assert used, 'the model-based slip laws use friction_models.core'
+    assert used <= CONTROL_MAY_USE_FROM_FRICTION_MODELS, sorted(
+        used - CONTROL_MAY_USE_FROM_FRICTION_MODELS)

@@ -10,7 +10,9 @@ from typing import Any
 import numpy as np
 import pytest
 
-from slip_gripper_driver.core.force_tracking import ForceTrackingProfile
+from slip_cell_common.core.force_profile import ForceTrackingProfile
+from slip_cell_common.time_conv import (seconds_to_nanoseconds, split_nanoseconds,
+                                        stamp_to_seconds)
 
 TAU_S = 0.01  # first-order lag of the synthetic "gripper": f_-3dB = 1/(2π τ) ≈ 15.9 Hz
 
@@ -37,12 +39,12 @@ def _write_bag(path: Path, profile: ForceTrackingProfile, t0: float) -> None:
         y[k] = y[k - 1] + alpha * (target[k - 1] - y[k - 1])
 
     def header(ts: float, frame: str = '') -> Any:
-        ns = int(round(ts * 1e9))
-        return Header(stamp=Time(sec=ns // 10**9, nanosec=ns % 10**9), frame_id=frame)
+        sec, nanosec = split_nanoseconds(seconds_to_nanoseconds(ts))
+        return Header(stamp=Time(sec=sec, nanosec=nanosec), frame_id=frame)
     with writer:
         for k in range(t.size):
             ts = t0 + t[k]
-            ns = int(round(ts * 1e9))
+            ns = seconds_to_nanoseconds(ts)
             writer.write_message('/gripper/grasp_force_cmd', ns, Command(
                 header=header(ts), force=float(target[k]), timeout=0.1, source=3))
             zero = Vector3(x=0.0, y=0.0, z=0.0)
@@ -96,7 +98,7 @@ def test_run_publishes_the_profile_at_500_hz_with_source_test_and_records(
     assert received and all(m.source == GraspForceCommand.SOURCE_TEST for m in received)
     forces = [m.force for m in received]
     assert forces[:-1] == [5.0] * (len(forces) - 1) and forces[-1] == 0.0  # 5 N hold, then 0 N
-    stamps = [m.header.stamp.sec + m.header.stamp.nanosec * 1e-9 for m in received]
+    stamps = [stamp_to_seconds(m.header.stamp) for m in received]
     assert stamps == sorted(stamps) and stamps[-1] - stamps[0] >= 0.9
     assert len(received) > 100  # a 500 Hz timer (rclpy skips periods on a loaded host)
     recorded = read_messages(bag, ['/gripper/grasp_force_cmd'])['/gripper/grasp_force_cmd']

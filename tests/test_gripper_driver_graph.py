@@ -10,6 +10,8 @@ from typing import Any
 
 import pytest
 
+from slip_cell_common.time_conv import clock_seconds
+
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
 
@@ -21,7 +23,7 @@ def test_installed_gripper_driver_against_the_pty_emulator(ros_context: Any,
     from rclpy.qos import QoSProfile
     from slip_msgs.msg import GraspForceCommand, GripperStatus
 
-    from slip_gripper_driver import ros_conv
+    from slip_gripper_driver.gripper_msgs_conv import grasp_command_msg
     from slip_cell_common.qos import COMMAND
     from slip_gripper_driver.core.firmware_emulator import (FirmwareEmulator,
                                                             GripperModelParams,
@@ -57,8 +59,8 @@ def test_installed_gripper_driver_against_the_pty_emulator(ros_context: Any,
         last = statuses[-1]
         assert last.link_ok and last.armed and last.line_count >= 50 and not last.ft_fresh
         assert spin_until(executor, lambda: pub.get_subscription_count() > 0, 10.0)
-        now = probe.get_clock().now().nanoseconds * 1e-9
-        pub.publish(ros_conv.grasp_command_msg(now, -4.0, 0.0, GraspForceCommand.SOURCE_TEST))
+        now = clock_seconds(probe.get_clock())
+        pub.publish(grasp_command_msg(now, -4.0, 0.0, GraspForceCommand.SOURCE_TEST))
         assert spin_until(executor, lambda: statuses[-1].voltage_cmd > 1.0, 5.0), proc.output()
         assert firmware.wait_for(lambda: firmware.emulator.target_voltage_v > 1.0, 2.0)
     finally:

@@ -1,4 +1,5 @@
-"""Every slip_msgs type imports, is fully documented, and round-trips through rclpy serialization."""
+"""Every slip_msgs type imports, is fully documented, and round-trips through rclpy
+serialization."""
 from __future__ import annotations
 
 import importlib

@@ -78,7 +78,8 @@ def test_manifest_declares_exactly_the_imports(package_dir: Path) -> None:
 def test_checker_sees_an_undeclared_import(tmp_path: Path) -> None:
     pkg = tmp_path / 'probe_pkg'
     (pkg / 'probe_pkg').mkdir(parents=True)
-    (pkg / 'probe_pkg' / 'a.py').write_text('import numpy\nfrom rclpy.node import Node\nimport os\n')
+    (pkg / 'probe_pkg' / 'a.py').write_text(
+        'import numpy\nfrom rclpy.node import Node\nimport os\n')
     (pkg / 'package.xml').write_text(
         '<package format="3"><name>probe_pkg</name><exec_depend>rclpy</exec_depend></package>')
     assert expected_depends(pkg) - declared_run_depends(pkg) == {'python3-numpy'}

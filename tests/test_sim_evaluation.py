@@ -2,9 +2,10 @@
 """Issue 7 item 4, in-process half: the contact estimator and the four slip controllers on the
 simulated cell, judged by physical outcomes from the simulator truth.
 
-Everything runs through `slip_bringup.core.sim_evaluation` (real cores as harness agents, sim
-time, no DDS). One full evaluation per reference preset is shared by the tests of
-this module; the fault tests build their own cells.
+Everything runs through `slip_bringup.core.evaluation` (the deployed cores as harness agents:
+the slip controller node's host, the runner's exploration; sim time, no DDS). One full
+evaluation per reference preset is shared by the tests of this module; the fault tests build
+their own cells.
 
 Tolerances (issue 7: "final linear error ≤ 2 mm, rotation ≤ 2°, no slip in hold"):
 
@@ -34,13 +35,21 @@ import pytest
 from slip_bringup import evaluate_cli
 from slip_control.core.contact import ContactSource
 from slip_control.core.controllers import SlipMode
-from slip_control.core.estimator import EstimationPhase
+from slip_control.core.contact_estimator import EstimationPhase
+from slip_control.core.controller_host import ControllerHost
 from slip_control.core.mode_switch import ModeRequest
-from slip_bringup.core.sim_evaluation import (LINEAR_CASES, REFERENCE_PRESETS, ROTATIONAL_CASES,
-                                              ControllerAgent, EstimatorAgent, EvalSettings,
-                                              PresetEvaluation, estimate_without_contact,
-                                              evaluate_preset, format_table, linear_slip,
-                                              make_harness, stream_fault)
+from slip_bringup.core.evaluation.agents import ControllerAgent, EstimatorAgent
+from slip_bringup.core.evaluation.estimation import estimate_without_contact
+from slip_bringup.core.evaluation.faults import stream_fault
+from slip_bringup.core.evaluation.report import format_table
+from slip_bringup.core.evaluation.scene import controller_params, make_harness
+from slip_bringup.core.evaluation.settings import REFERENCE_PRESETS, EvalSettings
+from slip_bringup.core.evaluation.sim_runner_cell import (SequenceAgent, SimRunnerCell,
+                                                          run_sequence)
+from slip_bringup.core.evaluation.table import (LINEAR_CASES, ROTATIONAL_CASES,
+                                                PresetEvaluation, evaluate_preset)
+from slip_bringup.core.evaluation.trajectories import linear_slip
+from slip_bringup.core.evaluation.truth import TruthProbe
 
 pytestmark = pytest.mark.slow
 
@@ -176,6 +185,7 @@ def test_ft_stream_stop_mid_slip_goes_to_safe_hold_within_100_ms(ft_faults: dict
     for at, o in ft_faults.items():
         assert o.result is not None and o.result.message == 'F/T stale', at
         assert o.reaction <= 0.100, (at, o.reaction)
+        assert o.deferred_steps >= 1, at          # the node's stale debounce ran
         assert o.mode_after == SlipMode.HOLD
 
 
@@ -190,6 +200,7 @@ def test_velocity_stream_stop_mid_slip_goes_to_safe_hold(at: float) -> None:
     o = stream_fault('cardboard', 'velocity', at)
     assert o.result is not None and o.result.message == 'velocity stale'
     assert o.reaction <= 0.100
+    assert o.deferred_steps >= 1                  # the node's stale debounce ran
     assert o.mode_after == SlipMode.HOLD
     assert not o.dropped
     assert o.force_after >= 4.0 - 1e-9          # HOLD law on fresh F/T, slip term 0
@@ -220,6 +231,62 @@ def test_slip_modes_are_refused_after_a_failed_exploration() -> None:
         assert not out.ok and 'DEFAULT' in out.message
     h.run_for(0.1)
     assert ctl.commands == [] and ctl.mode == SlipMode.OFF
+
+
+# --- the deployed code ----------------------------------------------------------------------
+
+@pytest.mark.ros
+def test_the_evaluation_and_the_node_run_the_same_controller_host(ros_context) -> None:
+    from slip_control.slip_controller_node import SlipControllerNode
+    node = SlipControllerNode(context=ros_context)
+    try:
+        agent = ControllerAgent(EvalSettings().controller, None)
+        assert type(agent.host) is type(node.host) is ControllerHost
+    finally:
+        node.destroy_node()
+
+
+@pytest.mark.parametrize(('preset', 'dt'), [('wood', 1e-4), ('wood', 1e-3), ('plastic', 1e-3),
+                                         ('case', 1e-3), ('cardboard', 1e-3)])
+def test_the_runners_exploration_slides_and_twists_the_pads_on_the_object(
+        preset: str, dt: float) -> None:
+    """``est_contact`` of the experiment runner, step machine and all, on the simulated cell:
+    the moves are the runner's (control_and_estimation §3.8); the table holds the object, so
+    it slides 10 mm up between the pads during the descent and the pads twist ≈ 10° on it; the
+    estimate is valid and the flags and pose are as after a real run."""
+    settings = EvalSettings(physics_dt=dt)
+    h = make_harness(preset, settings)
+    est = EstimatorAgent(settings.estimator)
+    ctl = ControllerAgent(controller_params(settings, h.cell), est.estimator.properties)
+    probe = TruthProbe()
+    seq = SequenceAgent()
+    for a in (est, ctl, probe, seq):
+        h.add_agent(a)
+    cell = SimRunnerCell(h, est, ctl)
+    runner = run_sequence(h, seq, cell, 'est_contact', settings.runner)
+    prog = runner.progress()
+    assert prog.success, prog.log
+    e = settings.runner.estimation
+    descent, twist, back = cell.moves[:3]
+    assert [(m.lift, m.rotation, round(m.t_end - m.t_start, 6)) for m in cell.moves[:3]] == [
+        (-e.descent, 0.0, e.descent_time), (0.0, e.twist_angle, e.twist_time),
+        (0.0, -e.twist_angle, e.twist_time)]
+    assert cell.moves[-1].lift == pytest.approx(e.descent)          # back to the pick-up pose
+    i0, i1 = probe.at(descent.t_start), probe.at(descent.t_end)
+    assert probe.y[i1] - probe.y[i0] == pytest.approx(e.descent, rel=0.02)    # slid up
+    assert abs(probe.x[i1] - probe.x[i0]) < 1e-4
+    assert max(abs(probe.object_y[i] - probe.object_y[i0]) for i in range(i0, i1 + 1)) < 1e-4
+    j0 = probe.at(twist.t_start)
+    rel = [probe.theta[i] - probe.theta[j0] for i in probe.indices(twist.t_start, back.t_end)]
+    assert max(rel, key=abs) == pytest.approx(-e.twist_angle, abs=0.01)   # pads turn on it
+    assert abs(rel[-1]) < 0.005
+    assert max(abs(probe.object_theta[i] - probe.object_theta[j0])
+               for i in probe.indices(twist.t_start, back.t_end)) < 0.005
+    assert not probe.dropped[probe.at(back.t_end)]
+    assert prog.estimate is not None and prog.estimate.valid
+    assert runner.flags.contact_estimated and runner.flags.gripper_open
+    assert [r.phase for r in est.reports] == [EstimationPhase.LINEAR, EstimationPhase.ROTATIONAL]
+    assert any('HOLD on (if allowed): failed (ignored)' in line for line in prog.log)
 
 
 # --- determinism -----------------------------------------------------------------------------

@@ -12,6 +12,8 @@ from typing import Any
 
 import pytest
 
+from slip_cell_common.time_conv import clock_seconds, stamp_to_seconds
+
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
 
@@ -21,7 +23,7 @@ def _share(pkg: str, rel: str) -> str:
 
 
 def start_sim(tmp_path: Path, env: dict[str, str], *extra: str, name: str = 'sim',
-              overrides: dict[str, Any] | None = None):  # noqa: ANN201
+              overrides: dict[str, Any] | None = None):
     """Start the installed sim_gripper with the cell and simulator YAML files (+ overrides)."""
     import yaml
     if overrides:
@@ -85,7 +87,7 @@ class Probe:
 
 
 def _stamp(msg: Any) -> float:
-    return msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+    return stamp_to_seconds(msg.header.stamp)
 
 
 def _rate(msgs: list[Any], t0: float, t1: float) -> float:
@@ -122,7 +124,7 @@ def test_sim_speaks_the_driver_interface_at_real_rates(ros_context, ros_env,
         wrench = probe.msgs['finger_1/ft/wrench'][-1]
         assert wrench.header.frame_id == 'ft_sensor_1'
         assert probe.msgs['finger_2/slip/twist'][-1].header.frame_id == 'vel_sensor_2'
-        now = probe.node.get_clock().now().nanoseconds * 1e-9
+        now = clock_seconds(probe.node.get_clock())
         assert abs(now - _stamp(status[-1])) < 0.5, 'probe clock must follow /clock'
         frames = probe.msgs['gripper/static_frames']
         assert frames and len(frames[-1].transforms) == 4

@@ -15,7 +15,7 @@ CELL = ROOT / 'src' / 'slip_gripper_driver' / 'config' / 'cell.yaml'
 
 @pytest.mark.ros
 @pytest.mark.slow
-def test_three_nodes_as_processes(ros_context, ros_env, tmp_path: Path) -> None:  # noqa: ANN001
+def test_three_nodes_as_processes(ros_context, ros_env, tmp_path: Path) -> None:
     from action_msgs.msg import GoalStatus
     from rclpy.action import ActionClient
     from rclpy.executors import SingleThreadedExecutor
@@ -59,7 +59,7 @@ def test_three_nodes_as_processes(ros_context, ros_env, tmp_path: Path) -> None:
     # Created first so discovery of its five endpoints runs while the services are called
     # (on a loaded machine Fast DDS discovery of a late joiner can take several seconds).
     client = ActionClient(node, RunExperiment, 'experiment/run')
-    logs = lambda: '\n'.join(f'--- {n}\n{p.output()}' for n, p in procs.items())  # noqa: E731
+    logs = lambda: '\n'.join(f'--- {n}\n{p.output()}' for n, p in procs.items())
     try:
         assert spin_until(executor, lambda: bool(props), 15.0), logs()
         assert props[-1].source == ContactProperties.SOURCE_DEFAULT and not props[-1].valid
@@ -96,4 +96,4 @@ def test_three_nodes_as_processes(ros_context, ros_env, tmp_path: Path) -> None:
         executor.shutdown()
         node.destroy_node()
         codes = {n: p.stop() for n, p in procs.items()}
-    assert codes == {n: 0 for n in procs}, logs()
+    assert codes == dict.fromkeys(procs, 0), logs()

@@ -28,7 +28,7 @@ fi
 VENV="$(cd "$VENV" && pwd)"
 
 echo "setup: installing Python packages into $VENV ($MODE mode; log: $LOG)"
-if ! "$VENV/bin/python" -m pip install --disable-pip-version-check -q "${REQS[@]}" "${CONS[@]}" >"$LOG" 2>&1; then
+if ! "$HERE/heartbeat.sh" -o "$LOG" "pip install" "$VENV/bin/python" -m pip install --disable-pip-version-check -q "${REQS[@]}" "${CONS[@]}"; then
   grep -v "^WARNING: Location 'file:" "$LOG" >&2 || true
   echo "error: pip install failed (full log: $LOG)" >&2
   exit 1

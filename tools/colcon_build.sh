@@ -13,10 +13,19 @@ if [ "$MODE" = wheels ]; then
 else
   export VIRTUAL_ENV="$VENV" PATH="$VENV/bin:$PATH"
 fi
+# Standard interfaces the wheels lack (tf2_msgs, control_msgs) are built from
+# src/upstream_interfaces in wheels mode only; a sourced system Jazzy provides the real ones,
+# so there they are ignored and any copy left by an earlier wheels build is removed.
+UPSTREAM_INTERFACES=(tf2_msgs control_msgs)
+SELECT=()
+if [ "$MODE" != wheels ]; then
+  SELECT=(--packages-ignore "${UPSTREAM_INTERFACES[@]}")
+  for pkg in "${UPSTREAM_INTERFACES[@]}"; do rm -rf "install/$pkg" "build/$pkg"; done
+fi
 export ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST ROS_LOG_DIR="$ROOT/build/ros_log"
 export PYTHONWARNINGS="ignore::DeprecationWarning"
 echo "setup: colcon build ($MODE mode)"
-"$VENV/bin/python" -m colcon --log-base build/colcon_log build --symlink-install \
-  --event-handlers console_cohesion- summary+ status- \
+"$ROOT/tools/heartbeat.sh" "colcon build" "$VENV/bin/python" -m colcon --log-base build/colcon_log build --symlink-install "${SELECT[@]}" \
+  --event-handlers console_cohesion- console_start_end+ summary+ status- \
   --cmake-args -DPython3_EXECUTABLE="$VENV/bin/python" -DBUILD_TESTING=OFF \
   2> >(grep -v -e 'byte-compiling is disabled' -e 'SetuptoolsDeprecationWarning' -e '^!!$' -e '^\s*\*\*\*' >&2)

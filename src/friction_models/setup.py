@@ -47,8 +47,9 @@ def compiled_core() -> list:
         return []
     paths = [str(CORE / f'{m}.py') for m in NATIVE.COMPILED_MODULES]
     try:
-        extensions = mypycify(['--ignore-missing-imports', *paths], opt_level='3',
-                              group_name=f'{PACKAGE}.core._native')
+        # '--config-file=': the workspace's mypy.ini (lint settings) must not change the build.
+        extensions = mypycify(['--config-file=', '--ignore-missing-imports', *paths],
+                              opt_level='3', group_name=f'{PACKAGE}.core._native')
     except (Exception, SystemExit) as exc:   # mypyc reports type errors by exiting
         print(f'friction_models: mypyc could not compile the simulation core ({exc!r}); it '
               'stays pure Python', file=sys.stderr)
@@ -61,7 +62,7 @@ setup(
     version='0.1.0',
     packages=find_packages(exclude=['test']),
     ext_modules=compiled_core(),
-    package_data={PACKAGE + '.core': [NATIVE.MANIFEST_NAME]},
+    package_data={PACKAGE + '.core': [NATIVE.MANIFEST_NAME, 'reference_objects.yaml']},
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + PACKAGE]),
         ('share/' + PACKAGE, ['package.xml']),

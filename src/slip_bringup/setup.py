@@ -14,6 +14,8 @@ setup(
         ('share/' + PACKAGE, ['package.xml']),
         ('share/' + PACKAGE + '/config', glob('config/*.yaml')),
         ('share/' + PACKAGE + '/launch', glob('launch/*.launch.py')),
+        # Wrappers of the user tools in <prefix>/bin: colcon puts that directory on PATH.
+        ('bin', sorted(glob('bin/*'))),
     ],
     install_requires=['setuptools'],
     zip_safe=True,
@@ -32,6 +34,8 @@ setup(
             'slip_analyze = slip_bringup.analyze:main',
             'slip_demo = slip_bringup.demo:main',
             'slip_evaluate = slip_bringup.evaluate_cli:main',
+            'foxglove_live = slip_bringup.foxglove_live:main',
+            'cell_markers = slip_bringup.cell_markers_node:main',
         ],
     },
 )

@@ -5,7 +5,7 @@ import math
 from pathlib import Path
 
 
-def status_message(k: int):  # noqa: ANN202
+def status_message(k: int):
     from slip_msgs.msg import GripperStatus
     msg = GripperStatus(line_count=k, motor_angle=0.01 * k, opening=math.nan, link_ok=True)
     msg.header.stamp.sec, msg.header.stamp.nanosec = 100, k * 1_000_000

@@ -18,12 +18,22 @@ from __future__ import annotations
 import argparse
 import math
 import sys
-from pathlib import Path
 from collections.abc import Sequence
-from typing import Any, Optional, TextIO
+from pathlib import Path
+from typing import Any, TextIO
 
 import numpy as np
 from numpy.typing import NDArray
+
+from slip_cell_common.core.cli_args import (
+    Parser,
+    finite_float,
+    float_range,
+    int_range,
+    non_negative_float,
+    positive_float,
+    positive_int,
+)
 
 from .core.distributed import DistributedPlanarLuGre
 from .core.limit_surface import LimitSurface, LimitSurfaceCache, characteristic_radius
@@ -223,8 +233,12 @@ def _cmd_compare(args: argparse.Namespace) -> int:
     return 0
 
 
-def _parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+#: Most steps a stick-slip run may take (``duration / dt``): about a minute of computing.
+MAX_STICK_SLIP_STEPS = 20_000_000
+
+
+def _parser() -> Parser:
+    parser = Parser(
         prog='friction_models_cli',
         description='Inspect the planar LuGre friction models: contact surfaces, pre-computed '
                     'limit surfaces, stick-slip, and reduced vs distributed accuracy. SI units '
@@ -233,23 +247,26 @@ def _parser() -> argparse.ArgumentParser:
                '  friction_models_cli surfaces\n'
                '  friction_models_cli limit-surface --surface line_grad --png ls.png\n'
                '  friction_models_cli stick-slip --mu-s 1.2 --png stick_slip.png\n'
-               '  friction_models_cli compare --surface all --dt 5e-4',
-        formatter_class=argparse.RawDescriptionHelpFormatter)
-    sub = parser.add_subparsers(dest='command', metavar='COMMAND', required=True)
+               '  friction_models_cli compare --surface all --dt 5e-4')
+    sub = parser.add_subparsers(dest='command', metavar='COMMAND', required=True,
+                                help='what to show (COMMAND --help for its options)')
+    cells = int_range(3, 201)
 
     def grid_args(p: argparse.ArgumentParser, with_all: bool = False) -> None:
         choices = STANDARD_SURFACES + (('all',) if with_all else ())
         p.add_argument('--surface', default='circle', choices=choices,
-                       help='canonical contact surface (default: %(default)s)')
-        p.add_argument('--n', type=int, default=21, help='cells per side (default: 21)')
-        p.add_argument('--size', type=float, default=0.02,
-                       help='patch side length [m] (default: 0.02)')
+                       help='canonical contact surface' + (' (all: every one)' if with_all
+                                                            else ''))
+        p.add_argument('--n', type=cells, default=21,
+                       help='pressure-grid cells per side, 3 to 201')
+        p.add_argument('--size', type=positive_float, default=0.02,
+                       help='patch side length [m]')
 
     p = sub.add_parser('surfaces', help='table of the canonical surfaces',
                        description='Cells, centre of pressure, characteristic radius r_a '
                                    '(one point per cell and bilinear) and viscous scale s_v3.')
-    p.add_argument('--n', type=int, default=21, help='cells per side (default: 21)')
-    p.add_argument('--size', type=float, default=0.02, help='patch side [m] (default: 0.02)')
+    p.add_argument('--n', type=cells, default=21, help='pressure-grid cells per side, 3 to 201')
+    p.add_argument('--size', type=positive_float, default=0.02, help='patch side length [m]')
     p.set_defaults(func=_cmd_surfaces)
 
     p = sub.add_parser('limit-surface', help='print or plot a pre-computed limit surface',
@@ -257,32 +274,47 @@ def _parser() -> argparse.ArgumentParser:
                                    'surface and print its sections θ = 0, 90, 180, 270° over ψ '
                                    '(ψ = 0: rotation about the CoP, 90°: translation).')
     grid_args(p)
-    p.add_argument('--n-ls', type=int, default=20,
-                   help='segments per quadrant (default: %(default)s)')
-    p.add_argument('--rows', type=int, default=5, help='ψ rows printed per section')
-    p.add_argument('--cache-dir', default='', help='folder for cached .npz tables')
-    p.add_argument('--png', default='', help='write a PNG figure to this path')
+    p.add_argument('--n-ls', type=int_range(1, 200), default=20,
+                   help='table segments per quadrant, 1 to 200 (more is finer and slower)')
+    p.add_argument('--rows', type=positive_int, default=5,
+                   help='ψ rows printed per section')
+    p.add_argument('--cache-dir', default='',
+                   help='folder for cached .npz tables (default: none, the table is built '
+                        'every time)')
+    p.add_argument('--png', default='', help='write a PNG figure to this path (default: none)')
     p.set_defaults(func=_cmd_limit_surface)
 
     p = sub.add_parser('stick-slip', help='print or plot a stick-slip time series',
                        description='Mass pulled through a spring over a 1-D amended LuGre '
                                    'contact. μ_s > μ_c gives stick-slip; μ_s = μ_c steady '
                                    'sliding.')
-    p.add_argument('--mu-c', type=float, default=1.0, help='Coulomb coefficient (default: 1.0)')
-    p.add_argument('--mu-s', type=float, default=1.2, help='static coefficient (default: 1.2)')
-    p.add_argument('--v-s', type=float, default=1e-3, help='Stribeck velocity [m/s]')
-    p.add_argument('--sigma0', type=float, default=1e5, help='bristle stiffness [1/m]')
-    p.add_argument('--sigma1', type=float, default=20.0, help='bristle damping [s/m]')
-    p.add_argument('--sigma2', type=float, default=1.0, help='viscous coefficient [s/m]')
-    p.add_argument('--f-n', type=float, default=10.0, help='normal force [N]')
-    p.add_argument('--mass', type=float, default=1.0, help='mass [kg]')
-    p.add_argument('--stiffness', type=float, default=1e4, help='spring stiffness [N/m]')
-    p.add_argument('--drive-speed', type=float, default=1e-3, help='pulling speed [m/s]')
-    p.add_argument('--duration', type=float, default=2.0, help='simulated time [s]')
-    p.add_argument('--dt', type=float, default=1e-4, help='time step [s]')
-    p.add_argument('--elasto-plastic', action='store_true', help='use the Elasto-Plastic law')
-    p.add_argument('--print-every', type=float, default=0.05, help='table interval [s]')
-    p.add_argument('--png', default='', help='write a PNG figure to this path')
+    p.add_argument('--mu-c', type=positive_float, default=1.0,
+                   help='Coulomb (kinetic) friction coefficient [-]')
+    p.add_argument('--mu-s', type=positive_float, default=1.2,
+                   help='static friction coefficient [-], >= --mu-c')
+    p.add_argument('--v-s', type=positive_float, default=1e-3,
+                   help='Stribeck velocity [m/s]')
+    p.add_argument('--sigma0', type=positive_float, default=1e5,
+                   help='bristle stiffness [1/m]')
+    p.add_argument('--sigma1', type=non_negative_float, default=20.0,
+                   help='bristle damping [s/m]')
+    p.add_argument('--sigma2', type=non_negative_float, default=1.0,
+                   help='viscous coefficient [s/m]')
+    p.add_argument('--f-n', type=positive_float, default=10.0, help='normal force [N]')
+    p.add_argument('--mass', type=positive_float, default=1.0, help='pulled mass [kg]')
+    p.add_argument('--stiffness', type=positive_float, default=1e4,
+                   help='spring stiffness [N/m]')
+    p.add_argument('--drive-speed', type=finite_float, default=1e-3,
+                   help='speed of the spring\'s far end [m/s]')
+    p.add_argument('--duration', type=positive_float, default=2.0,
+                   help='simulated time [s]')
+    p.add_argument('--dt', type=positive_float, default=1e-4,
+                   help='integration step [s], at most --duration')
+    p.add_argument('--elasto-plastic', action='store_true',
+                   help='use the Elasto-Plastic law instead of plain LuGre')
+    p.add_argument('--print-every', type=positive_float, default=0.05,
+                   help='time between printed rows [s]')
+    p.add_argument('--png', default='', help='write a PNG figure to this path (default: none)')
     p.set_defaults(func=_cmd_stick_slip)
 
     p = sub.add_parser('compare', help='reduced vs distributed accuracy (NRMSE)',
@@ -290,19 +322,31 @@ def _parser() -> argparse.ArgumentParser:
                                    'distributed model and the reduced model with the limit '
                                    'surface and with the ellipsoid; print normalised RMSEs.')
     grid_args(p, with_all=True)
-    p.add_argument('--dt', type=float, default=5e-4, help='time step [s] (default: 5e-4)')
-    p.add_argument('--png', default='', help='write a PNG of the first surface to this path')
+    p.add_argument('--dt', type=float_range(1e-6, 0.05), default=5e-4,
+                   help='integration step [s], 1e-6 to 0.05')
+    p.add_argument('--png', default='',
+                   help='write a PNG of the first surface to this path (default: none)')
     p.set_defaults(func=_cmd_compare)
     return parser
 
 
-def main(argv: Optional[Sequence[str]] = None) -> int:
-    """Console-script entry point; returns the process exit code."""
-    args = _parser().parse_args(argv)
+def main(argv: Sequence[str] | None = None) -> int:
+    """Console-script entry point; returns the process exit code (2: bad arguments, with
+    one error line)."""
+    parser = _parser()
+    args = parser.parse_args(argv)
+    if args.command == 'stick-slip':
+        if args.dt > args.duration:
+            parser.error(f'stick-slip: --dt {args.dt:g} s is longer than --duration '
+                         f'{args.duration:g} s')
+        if args.duration / args.dt > MAX_STICK_SLIP_STEPS:
+            parser.error(f'stick-slip: --duration / --dt = {args.duration / args.dt:.3g} steps; '
+                         f'at most {MAX_STICK_SLIP_STEPS:.0e} (raise --dt or shorten --duration)')
     try:
         return int(args.func(args))
     except ValueError as exc:
-        print(f'error: {exc}', file=sys.stderr)
+        text = ' '.join(str(exc).split())
+        print(f'friction_models_cli: error: {text}', file=sys.stderr, flush=True)
         return 2
 
 

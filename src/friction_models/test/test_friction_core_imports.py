@@ -10,7 +10,8 @@ import pytest
 
 CORE = Path(__file__).resolve().parents[1] / 'friction_models' / 'core'
 THIRD_PARTY = {'numpy', 'scipy', 'yaml', 'filterpy'}
-PROJECT = {'slip_cell_common', 'slip_gripper_driver', 'slip_velocity_sensor', 'friction_models'}   # cores only
+# Project packages whose cores a core may import.
+PROJECT = {'slip_cell_common', 'slip_gripper_driver', 'slip_velocity_sensor', 'friction_models'}
 
 
 def imported_modules(tree: ast.AST) -> set[str]:

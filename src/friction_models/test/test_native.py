@@ -3,8 +3,8 @@
 
 * ``stale_reason`` on a scratch directory: current, missing, edited, unreadable manifest.
 * The built workspace runs the compiled core (when mypy is installed, as requirements.txt
-  asks), all five modules from extensions; ``FRICTION_MODELS_PURE_PYTHON=1`` runs all five
-  from source.
+  asks), every hot module from its extension; ``FRICTION_MODELS_PURE_PYTHON=1`` runs all
+  of them from source.
 * A copy of the built package whose ``plant.py`` was edited after the build falls back to pure
   Python for every hot module, with a warning that names the file.
 * Equivalence: the same closed-loop scenario (grasp, lift, gravity slip at a low force,
@@ -141,7 +141,7 @@ class Digest:
         self.h.update(repr(values).encode())
     def on_ft(self, h, s): self.add('ft', s.stamp, s.finger, s.raw)
     def on_velocity(self, h, s): self.add('vel', s.stamp, s.finger, s.vx, s.vy, s.omega)
-    def on_telemetry(self, h, s): self.add('tel', s.stamp, s.motor_angle_rad, s.force_cmd, s.voltage_cmd)
+    def on_telemetry(self, h, s): self.add('tel', s.stamp, s.command, s.status)
 
 cell = SimCell(SimParams(seed=7), reference_presets(), 'plastic')
 d = Digest()

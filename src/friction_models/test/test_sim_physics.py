@@ -6,7 +6,7 @@ import math
 
 import pytest
 
-from friction_models.core.harness import (Harness, estimation_exploration, grasp_and_hold,
+from friction_models.core.harness import (Harness, grasp_and_hold,
                                           open_loop_release)
 from friction_models.core.presets import ContactPreset, ObjectPreset, reference_presets
 from friction_models.core.sensors import FtSensorParams, VelocitySensorParams
@@ -129,33 +129,6 @@ def test_energy_does_not_grow_in_a_passive_release(dt: float, mode: str) -> None
     assert result.max_rise < 1e-6 * e0
     assert sum(max(0.0, b - a) for a, b in zip(result.energy, result.energy[1:])) < 1e-5 * e0
     assert result.energy[-1] < e0 - 0.9 * 0.2 * G * 0.1   # the potential energy is gone
-
-
-@pytest.mark.parametrize('dt', [1e-4, 1e-3])
-def test_exploration_slides_up_and_twists_the_pads_on_the_object(dt: float) -> None:
-    h = Harness(_cell(dt, preset='wood'))
-    phases: list[tuple[str, float, float]] = []
-    r = estimation_exploration(h, on_phase=lambda *a: phases.append(a), release=False)
-    assert [p[0] for p in phases] == ['linear', 'rotational']
-    # 10 mm down in 0.8 s with the object on the table: it slides up between the pads.
-    assert r.slide[1] == pytest.approx(0.01, rel=0.02)
-    assert abs(r.slide[0]) < 1e-4
-    assert r.slide_speed == pytest.approx(0.0125, rel=0.05)
-    assert r.object_drop < 1e-4          # the table holds it (penetration only)
-    # +10° and back: the object stays, so relative to the pads it turns by about −10°.
-    assert r.twist_peak == pytest.approx(-math.radians(10.0), abs=0.01)
-    assert r.object_turn < 0.005
-    assert abs(r.twist_final) < 0.005
-    assert not r.dropped
-
-
-def test_exploration_works_for_every_reference_object() -> None:
-    for name in ('plastic', 'case', 'cardboard'):
-        h = Harness(_cell(1e-3, preset=name))
-        r = estimation_exploration(h, release=False)
-        assert r.slide_speed == pytest.approx(0.0125, rel=0.05), name
-        assert r.twist_peak == pytest.approx(-math.radians(10.0), abs=0.01), name
-        assert r.object_turn < 0.005, name
 
 
 def test_object_slides_off_the_face_and_drops_to_the_table() -> None:

@@ -1,6 +1,7 @@
 """Launch the hardware gripper cell on a full ROS 2 Jazzy install.
 
-The same graph as `run_graph --hardware` (config/hardware_cell.graph.yaml), with the same parameter files.
+The same graph as `run_graph --hardware` (config/hardware_cell.graph.yaml), with the same
+parameter files.
 Arguments: namespace, tf_prefix, use_sim_time, params_file (an extra YAML applied after the
 packages' own files, for site-specific ports, addresses and gains).
 

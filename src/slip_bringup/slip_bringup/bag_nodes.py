@@ -22,11 +22,13 @@ from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 
 from slip_cell_common.bag_io import BagError, bag_info, iter_raw
-from slip_cell_common.recorder import (TopicRecorder, _matches, import_message_type,
-                                                 is_command_topic)
+from slip_cell_common.recorder import (TopicRecorder, import_message_type, is_command_topic,
+                                      topic_matches)
 from slip_cell_common.node_main import run_node
 from slip_cell_common.param_binding import ParameterBinding
-from slip_cell_common.qos import CLOCK, SENSOR_PUB
+from slip_cell_common.qos import CLOCK, LATCHED, SENSOR_PUB
+from slip_cell_common.core import names
+from slip_cell_common.time_conv import nanoseconds_to_seconds, nanoseconds_to_stamp
 
 
 @dataclass(frozen=True)
@@ -95,9 +97,9 @@ class BagReplayNode(Node):
         # Create every publisher before the start delay so discovery happens during the delay.
         self._pubs: dict[str, Any] = {}
         for info in bag_info(self.cfg.bag).topics:
-            if info.name != '/clock' and self._selected(info.name):
-                self._publisher(info.name, info.msgtype)
-        self._clock_pub = (self.create_publisher(Clock, '/clock', CLOCK)
+            if info.name != names.CLOCK and self._selected(info.name):
+                self._publisher(info.name, info.msgtype, info.latched)
+        self._clock_pub = (self.create_publisher(Clock, names.CLOCK, CLOCK)
                            if self.cfg.publish_clock else None)
         self.published = 0
         self.done = threading.Event()
@@ -107,14 +109,16 @@ class BagReplayNode(Node):
         self._thread.start()
 
     def _selected(self, topic: str) -> bool:
-        if not _matches(topic, self.cfg.topics):
+        if not topic_matches(topic, self.cfg.topics):
             return False
         return self.cfg.include_commands or not is_command_topic(topic)
 
-    def _publisher(self, topic: str, msgtype: str) -> Any:
+    def _publisher(self, topic: str, msgtype: str, latched: bool = False) -> Any:
+        """Publisher of a replayed topic: latched where the recorded publishers were."""
         pub = self._pubs.get(topic)
         if pub is None:
-            pub = self.create_publisher(import_message_type(msgtype), topic, SENSOR_PUB)
+            pub = self.create_publisher(import_message_type(msgtype), topic,
+                                        LATCHED if latched else SENSOR_PUB)
             self._pubs[topic] = pub
         return pub
 
@@ -134,17 +138,16 @@ class BagReplayNode(Node):
             for topic, msgtype, stamp, data in iter_raw(self.cfg.bag):
                 if self._stop.is_set():
                     return
-                if topic == '/clock' or not self._selected(topic):
+                if topic == names.CLOCK or not self._selected(topic):
                     continue
                 bag0 = stamp if bag0 is None else bag0
                 if self.cfg.rate > 0.0:
-                    delay = wall0 + (stamp - bag0) * 1e-9 / self.cfg.rate - time.monotonic()
+                    delay = (wall0 + nanoseconds_to_seconds(stamp - bag0) / self.cfg.rate
+                             - time.monotonic())
                     if delay > 0.0 and self._stop.wait(delay):
                         return
                 if self._clock_pub is not None:
-                    clock = Clock()
-                    clock.clock.sec, clock.clock.nanosec = divmod(stamp, 1_000_000_000)
-                    self._clock_pub.publish(clock)
+                    self._clock_pub.publish(Clock(clock=nanoseconds_to_stamp(stamp)))
                 self._publisher(topic, msgtype).publish(data)
                 self.published += 1
         except BagError as exc:
@@ -170,8 +173,17 @@ def recorder_main(args: list[str] | None = None) -> int:
 
 
 def replay_main(args: list[str] | None = None) -> int:
-    """Console script ``bag_replay``."""
-    return run_node(BagReplayNode, args)
+    """Console script ``bag_replay``; exit code 2 when the bag failed while playing."""
+    nodes: list[BagReplayNode] = []
+
+    def factory() -> BagReplayNode:
+        nodes.append(BagReplayNode())
+        return nodes[-1]
+    code = run_node(factory, args)
+    if code == 0 and nodes and nodes[0].error:
+        print(f'bag_replay: error: {nodes[0].error}', file=sys.stderr)
+        return 2
+    return code
 
 
 if __name__ == '__main__':

@@ -28,6 +28,7 @@ from rclpy.signals import SignalHandlerOptions
 from slip_bringup.run_graph import GraphRunner, _prefix, load_graph
 from slip_cell_common.bag_io import bag_info
 from slip_cell_common.calls import call_service, spin_until
+from slip_cell_common.core import names
 
 
 @dataclass(frozen=True)
@@ -65,8 +66,8 @@ EXPERIMENTS: tuple[Experiment, ...] = (
                '(control_and_estimation §5.4), object held in the air; the topics of §5.4 only',
                'cardboard', ('est_contact', 'grasp'), 'force_tracking_test',
                overrides={'experiment_runner': {'recording.topics': [
-                   'gripper/grasp_force_cmd', 'gripper/motor_command', 'finger_1/ft/wrench',
-                   '/diagnostics']}}),
+                   names.GRASP_FORCE_CMD, names.MOTOR_COMMAND, names.ft_wrench(1),
+                   names.DIAGNOSTICS]}}),
     Experiment('est_contact_cardboard', 'contact estimation (push 1 cm down, twist ±10° on '
                'the table), cardboard box', 'cardboard', (), 'est_contact'),
     Experiment('est_contact_plastic', 'contact estimation, plastic object', 'plastic', (),
@@ -86,7 +87,8 @@ EXPERIMENTS: tuple[Experiment, ...] = (
                'rotational_slippage', duration=2.0, angle=0.3490659,
                overrides={'experiment_runner': {'hinge.start_angle': 1.5707963}}),
     Experiment('hinge', 'hinge: the gripper turns 60° about the grasp axis around the hanging '
-               'object', 'cardboard', ('est_contact', 'grasp', 'pick_up_object', 'go_to_hinge_pose'),
+               'object', 'cardboard',
+               ('est_contact', 'grasp', 'pick_up_object', 'go_to_hinge_pose'),
                'hinge_mode'),
 )
 
@@ -101,7 +103,7 @@ class _Client:
         self.node = Node('make_bags')
         self.executor = SingleThreadedExecutor()
         self.executor.add_node(self.node)
-        self.action = ActionClient(self.node, RunExperiment, 'experiment/run')
+        self.action = ActionClient(self.node, RunExperiment, names.EXPERIMENT_RUN_ACTION)
         self.goal_type = RunExperiment.Goal
 
     def run(self, mode: str, record: str = '', timeout_s: float = 300.0,
@@ -133,7 +135,7 @@ class _Client:
         req = ApplyDisturbance.Request(torque=d.torque, duration=d.duration)
         req.force.x, req.force.y = d.fx, d.fy
         res = call_service(self.executor, self.node.create_client(
-            ApplyDisturbance, 'sim/apply_disturbance'), req, 10.0)
+            ApplyDisturbance, names.SIM_APPLY_DISTURBANCE_SRV), req, 10.0)
         if res is None or not res.success:
             raise RuntimeError(f'disturbance failed: {res.message if res else "no answer"}')
 
@@ -147,8 +149,9 @@ def record(exp: Experiment, output: Path, work: Path, realtime_factor: float) ->
     """Run one experiment through the graph; returns the bag path inside ``output``."""
     graph = load_graph(_prefix('slip_bringup') / 'share' / 'slip_bringup' / 'config' /
                        'sim_cell.graph.yaml')
-    overrides = {'sim_gripper': {'preset': exp.preset, 'realtime_factor': realtime_factor},
-                 'experiment_runner': {'recording.directory': str(work)}}
+    overrides: dict[str, dict[str, Any]] = {
+        'sim_gripper': {'preset': exp.preset, 'realtime_factor': realtime_factor},
+        'experiment_runner': {'recording.directory': str(work)}}
     for node, values in exp.overrides.items():
         overrides.setdefault(node, {}).update(values)
     runner = GraphRunner(graph, work / 'logs', overrides=overrides)
@@ -207,7 +210,10 @@ def main(argv: list[str] | None = None) -> int:
     """Record every (or the selected) experiment into ``--output``."""
     parser = argparse.ArgumentParser(prog='make_bags', description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument('--output', default='bags')
+    parser.add_argument('--output', required=True,
+                        help="directory of the reference bags (`make bags` passes the "
+                             "repository's bags/); no default, so nothing lands in a working "
+                             'directory by accident')
     parser.add_argument('--only', action='append', help='experiment name (repeatable)')
     parser.add_argument('--realtime-factor', type=float, default=1.0)
     ns = parser.parse_args(argv)

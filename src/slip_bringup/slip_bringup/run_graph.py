@@ -15,11 +15,10 @@ paths. Each node runs in its own process group; SIGINT/SIGTERM to the runner sto
 with SIGINT, then SIGKILL after ``--stop-timeout``. When a node exits on its own, the runner
 stops the others and exits non-zero.
 
-The same graphs exist as launch files (``slip_control/launch/*.launch.py``) for full installs.
+The same graphs exist as launch files (``slip_bringup/launch/*.launch.py``) for full installs.
 """
 from __future__ import annotations
 
-import argparse
 import os
 import signal
 import subprocess
@@ -27,9 +26,12 @@ import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
+from collections.abc import Sequence
 
 import yaml
+
+from slip_cell_common.core.cli_args import Parser, non_negative_float, plain_doc, positive_float
 
 
 class GraphError(RuntimeError):
@@ -166,7 +168,7 @@ class GraphRunner:
         commands = {n.name: node_command(n, self.graph.use_sim_time, self._extra.get(n.name, ()))
                     for n in self.graph.nodes}
         for name, cmd in commands.items():
-            log = open(self.log_dir / f'{name}.log', 'wb')  # noqa: SIM115 - closed in stop()
+            log = open(self.log_dir / f'{name}.log', 'wb')
             self._logs[name] = log
             self.procs[name] = subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT,
                                                 env=self._env, start_new_session=True)
@@ -202,15 +204,21 @@ class _Stop(Exception):
 
 def main(argv: list[str] | None = None) -> int:
     """Console script ``run_graph``."""
-    parser = argparse.ArgumentParser(prog='run_graph', description=__doc__,
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument('--config', help='graph YAML (default: the simulated or hardware cell)')
-    parser.add_argument('--sim', action='store_true', help='the simulated cell (default graph)')
-    parser.add_argument('--hardware', action='store_true', help='the hardware cell graph')
-    parser.add_argument('--duration', type=float, default=0.0, help='stop after S seconds')
-    parser.add_argument('--log-dir', default=os.path.join(
-        os.environ.get('ROS_LOG_DIR', '/tmp'), 'run_graph'))
-    parser.add_argument('--stop-timeout', type=float, default=8.0)
+    parser = Parser(prog='run_graph', description=plain_doc(__doc__))
+    graph = parser.add_mutually_exclusive_group()
+    graph.add_argument('--sim', action='store_true',
+                       help='the simulated cell, config/sim_cell.graph.yaml (the default graph)')
+    graph.add_argument('--hardware', action='store_true',
+                       help='the hardware cell, config/hardware_cell.graph.yaml')
+    graph.add_argument('--config', metavar='FILE',
+                       help='a graph YAML of your own (default: the --sim graph)')
+    parser.add_argument('--duration', type=non_negative_float, default=0.0, metavar='S',
+                        help='stop the graph after S seconds (0 = run until Ctrl-C)')
+    parser.add_argument('--log-dir', metavar='DIR', default=os.path.join(
+        os.environ.get('ROS_LOG_DIR', '/tmp'), 'run_graph'),
+        help='directory for one <node>.log per node ($ROS_LOG_DIR/run_graph)')
+    parser.add_argument('--stop-timeout', type=positive_float, default=8.0, metavar='S',
+                        help='after SIGINT, wait this long [s] for each node before SIGKILL')
     ns = parser.parse_args(argv)
     if ns.config:
         config = Path(ns.config)
@@ -224,7 +232,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f'run_graph: error: {exc}', file=sys.stderr)
         return 2
 
-    def _raise(signum: int, frame: object) -> None:  # noqa: ARG001
+    def _raise(signum: int, frame: object) -> None:
         raise _Stop
 
     signal.signal(signal.SIGINT, _raise)

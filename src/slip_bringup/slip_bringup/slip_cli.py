@@ -1,62 +1,49 @@
 """``slip_cli``: command the cell from a shell where the ``ros2`` CLI is not installed.
 
-Examples::
+Cell commands::
 
     slip_cli force 10                     # grasp with 10 N per finger
-    slip_cli call gripper/bias_ft         # any std_srvs/Trigger service
     slip_cli estimate linear 1.0          # contact-estimation phase for 1 s
     slip_cli properties                   # latest contact properties
     slip_cli mode linear --distance 0.02 --duration 2.0
     slip_cli mode rotational --angle 0.35 --duration 2.0
     slip_cli run demo --record demo_sim   # an experiment-runner sequence, with progress
     slip_cli lifecycle sim_gripper get
+
+What ``ros2`` offers, for installs without it::
+
+    slip_cli topic list                   # topics with their types
+    slip_cli topic hz /finger_1/ft/wrench # rate (--header: from the message stamps)
+    slip_cli node list
+    slip_cli param list slip_controller
+    slip_cli param describe slip_controller hold.margin   # type, description, range
     slip_cli param get slip_controller hold.margin
     slip_cli param set slip_controller hold.margin 2.5
-    slip_cli echo gripper/status --count 3
+    slip_cli call gripper/bias_ft         # any service; type looked up, response as YAML
+    slip_cli call contact/start slip_msgs/srv/StartEstimation '{phase: 1, duration: 1.0}'
+    slip_cli echo gripper/status --count 3   # YAML, like ros2 topic echo
+
+Exit code 0 on success, 1 when a command is refused or fails (one line on stderr).
 """
 from __future__ import annotations
 
 import argparse
 import math
 import sys
-import time
 from typing import Any
 
 import rclpy
 from rclpy.action import ActionClient
-from rclpy.executors import SingleThreadedExecutor
-from rclpy.node import Node
+from rclpy.duration import Duration
 from rclpy.signals import SignalHandlerOptions
 
-from slip_cell_common.calls import call_service, spin_until
+from slip_bringup import ros_commands
+from slip_bringup.cli_session import CliError, CliSession
+from slip_cell_common.core import names
 
 MODES = {'off': 0, 'rotational': 1, 'linear': 2, 'hinge': 3, 'hold': 4}
 PHASES = {'idle': 0, 'linear': 1, 'rotational': 2, 'limit_surface': 3, 'online': 4}
 TRANSITIONS = {'configure': 1, 'cleanup': 2, 'activate': 3, 'deactivate': 4, 'shutdown': 5}
-
-
-class CliError(RuntimeError):
-    """A command failed; the message is printed and the exit code is 1."""
-
-
-class _Cli:
-    def __init__(self, timeout_s: float) -> None:
-        self.node = Node('slip_cli')
-        self.executor = SingleThreadedExecutor()
-        self.executor.add_node(self.node)
-        self.timeout_s = timeout_s
-
-    def call(self, srv_type: type, name: str, request: Any) -> Any:
-        client = self.node.create_client(srv_type, name)
-        response = call_service(self.executor, client, request, self.timeout_s)
-        if response is None:
-            raise CliError(f'service {name} did not answer within {self.timeout_s:.0f} s '
-                           '(is the node running on this ROS_DOMAIN_ID?)')
-        return response
-
-    def close(self) -> None:
-        self.executor.shutdown()
-        self.node.destroy_node()
 
 
 def _finite(value: float, what: str) -> float:
@@ -65,31 +52,23 @@ def _finite(value: float, what: str) -> float:
     return value
 
 
-def cmd_force(cli: _Cli, ns: argparse.Namespace) -> str:
+def cmd_force(cli: CliSession, ns: argparse.Namespace) -> str:
     from slip_cell_common.qos import COMMAND
     from slip_msgs.msg import GraspForceCommand
-    pub = cli.node.create_publisher(GraspForceCommand, 'gripper/grasp_force_cmd', COMMAND)
-    if not spin_until(cli.executor, lambda: pub.get_subscription_count() > 0, cli.timeout_s):
-        raise CliError('no subscriber on gripper/grasp_force_cmd (is the driver running?)')
-    msg = GraspForceCommand(force=_finite(ns.newton, 'force'), timeout=ns.timeout,
+    pub = cli.node.create_publisher(GraspForceCommand, names.GRASP_FORCE_CMD, COMMAND)
+    if not cli.wait(lambda: pub.get_subscription_count() > 0, cli.timeout_s):
+        raise CliError(f'no subscriber on {names.GRASP_FORCE_CMD} (is the driver running?)')
+    msg = GraspForceCommand(force=_finite(ns.newton, 'force'), timeout=ns.expire,
                             source=GraspForceCommand.SOURCE_MANUAL)
     msg.header.stamp = cli.node.get_clock().now().to_msg()
     pub.publish(msg)
-    spin_until(cli.executor, lambda: False, 0.2)  # let reliable delivery complete
+    pub.wait_for_all_acked(Duration(seconds=2.0))  # reliable delivery before the node goes
     return f'commanded {ns.newton:.2f} N'
 
 
-def cmd_call(cli: _Cli, ns: argparse.Namespace) -> str:
-    from std_srvs.srv import Trigger
-    res = cli.call(Trigger, ns.service, Trigger.Request())
-    if not res.success:
-        raise CliError(f'{ns.service}: {res.message}')
-    return f'{ns.service}: {res.message or "ok"}'
-
-
-def cmd_estimate(cli: _Cli, ns: argparse.Namespace) -> str:
+def cmd_estimate(cli: CliSession, ns: argparse.Namespace) -> str:
     from slip_msgs.srv import StartEstimation
-    res = cli.call(StartEstimation, 'contact/start', StartEstimation.Request(
+    res = cli.call(StartEstimation, names.CONTACT_START_SRV, StartEstimation.Request(
         phase=PHASES[ns.phase], duration=_finite(ns.duration, 'duration')))
     if not res.accepted:
         raise CliError(f'estimation refused: {res.message}')
@@ -107,42 +86,43 @@ def _format_properties(props: Any) -> str:
     return '\n'.join(rows)
 
 
-def cmd_properties(cli: _Cli, ns: argparse.Namespace) -> str:
+def cmd_properties(cli: CliSession, ns: argparse.Namespace) -> str:
     del ns
     from slip_msgs.srv import GetContactProperties
-    res = cli.call(GetContactProperties, 'contact/get_properties',
+    res = cli.call(GetContactProperties, names.CONTACT_GET_PROPERTIES_SRV,
                    GetContactProperties.Request())
     return _format_properties(res.properties) + (f'\n{res.message}' if res.message else '')
 
 
-def cmd_mode(cli: _Cli, ns: argparse.Namespace) -> str:
+def cmd_mode(cli: CliSession, ns: argparse.Namespace) -> str:
     from slip_msgs.srv import SetSlipMode
     req = SetSlipMode.Request(mode=MODES[ns.mode], duration=ns.duration, distance=ns.distance,
                               angle=ns.angle, latch_direction=ns.latch)
     req.direction.x, req.direction.y = ns.direction
-    res = cli.call(SetSlipMode, 'slip_control/set_mode', req)
+    res = cli.call(SetSlipMode, names.SLIP_SET_MODE_SRV, req)
     if not res.success:
         raise CliError(f'mode refused: {res.message}')
     return res.message or f'mode {ns.mode}'
 
 
-def cmd_run(cli: _Cli, ns: argparse.Namespace) -> str:
+def cmd_run(cli: CliSession, ns: argparse.Namespace) -> str:
     from slip_msgs.action import RunExperiment
-    client = ActionClient(cli.node, RunExperiment, 'experiment/run')
-    if not spin_until(cli.executor, client.server_is_ready, cli.timeout_s):
-        raise CliError('experiment/run is not available (is experiment_runner running?)')
+    client = ActionClient(cli.node, RunExperiment, names.EXPERIMENT_RUN_ACTION)
+    if not cli.wait(client.server_is_ready, cli.timeout_s):
+        raise CliError(f'{names.EXPERIMENT_RUN_ACTION} is not available (is experiment_runner '
+                       'running?)')
     goal = RunExperiment.Goal(mode=ns.mode, duration=ns.duration, distance=ns.distance,
                               angle=ns.angle, recording_name=ns.record or '')
 
     def feedback(msg: Any) -> None:
         print(f'  [{msg.feedback.elapsed:7.2f} s] {msg.feedback.phase}', flush=True)
     send = client.send_goal_async(goal, feedback_callback=feedback)
-    spin_until(cli.executor, send.done, cli.timeout_s)
+    cli.wait(send.done, cli.timeout_s)
     handle = send.result() if send.done() else None
     if handle is None or not handle.accepted:
         raise CliError(f'experiment {ns.mode!r} was not accepted')
     result = handle.get_result_async()
-    spin_until(cli.executor, result.done, ns.run_timeout)
+    cli.wait(result.done, ns.run_timeout)
     if not result.done():
         raise CliError(f'experiment {ns.mode!r} did not finish within {ns.run_timeout:.0f} s')
     res = result.result().result
@@ -152,7 +132,7 @@ def cmd_run(cli: _Cli, ns: argparse.Namespace) -> str:
     return text + '\n' + _format_properties(res.estimate)
 
 
-def cmd_lifecycle(cli: _Cli, ns: argparse.Namespace) -> str:
+def cmd_lifecycle(cli: CliSession, ns: argparse.Namespace) -> str:
     from lifecycle_msgs.srv import ChangeState, GetState
     if ns.transition == 'get':
         res = cli.call(GetState, f'{ns.node}/get_state', GetState.Request())
@@ -165,54 +145,6 @@ def cmd_lifecycle(cli: _Cli, ns: argparse.Namespace) -> str:
     return f'{ns.node}: {ns.transition} ok'
 
 
-def _parse_value(text: str) -> Any:
-    import yaml
-    return yaml.safe_load(text)
-
-
-def cmd_param(cli: _Cli, ns: argparse.Namespace) -> str:
-    from rcl_interfaces.srv import GetParameters, SetParameters
-    from rclpy.parameter import Parameter, parameter_value_to_python
-    if ns.action == 'get':
-        res = cli.call(GetParameters, f'{ns.node}/get_parameters',
-                       GetParameters.Request(names=[ns.name]))
-        if not res.values or res.values[0].type == 0:
-            raise CliError(f'{ns.node} has no parameter {ns.name!r}')
-        return f'{ns.name} = {parameter_value_to_python(res.values[0])!r}'
-    if ns.value is None:
-        raise CliError('param set needs a value')
-    param = Parameter(ns.name, value=_parse_value(ns.value)).to_parameter_msg()
-    res = cli.call(SetParameters, f'{ns.node}/set_parameters',
-                   SetParameters.Request(parameters=[param]))
-    if not res.results[0].successful:
-        raise CliError(f'{ns.node} refused {ns.name}: {res.results[0].reason}')
-    return f'{ns.name} set'
-
-
-def cmd_echo(cli: _Cli, ns: argparse.Namespace) -> str:
-    from slip_bringup.bag_nodes import import_message_type
-    from slip_cell_common.qos import SENSOR_SUB
-    topic = ns.topic if ns.topic.startswith('/') else '/' + ns.topic
-    types: list[str] = []
-    spin_until(cli.executor, lambda: bool(types.extend(
-        t for n, ts in cli.node.get_topic_names_and_types() if n == topic for t in ts) or types),
-        cli.timeout_s)
-    if not types:
-        raise CliError(f'no publisher of {topic}')
-    got: list[Any] = []
-    cli.node.create_subscription(import_message_type(types[0]), topic, got.append, SENSOR_SUB)
-    start = time.monotonic()
-    shown = 0
-    while shown < ns.count and time.monotonic() - start < cli.timeout_s + ns.count:
-        cli.executor.spin_once(timeout_sec=0.05)
-        while got and shown < ns.count:
-            print(got.pop(0), flush=True)
-            shown += 1
-    if shown < ns.count:
-        raise CliError(f'received {shown} of {ns.count} messages on {topic}')
-    return ''
-
-
 def build_parser() -> argparse.ArgumentParser:
     """Argument parser of ``slip_cli``."""
     parser = argparse.ArgumentParser(prog='slip_cli', description=__doc__,
@@ -221,12 +153,9 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest='command', required=True)
     p = sub.add_parser('force', help='publish one grasp-force command [N]')
     p.add_argument('newton', type=float)
-    p.add_argument('--expire', dest='timeout', type=float, default=0.0,
+    p.add_argument('--expire', dest='expire', type=float, default=0.0,
                    help='command expiry [s]; 0 = until replaced')
     p.set_defaults(func=cmd_force)
-    p = sub.add_parser('call', help='call a std_srvs/Trigger service')
-    p.add_argument('service')
-    p.set_defaults(func=cmd_call)
     p = sub.add_parser('estimate', help='start a contact-estimation phase')
     p.add_argument('phase', choices=list(PHASES))
     p.add_argument('duration', type=float, nargs='?', default=1.0)
@@ -254,16 +183,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('node')
     p.add_argument('transition', choices=['get', *TRANSITIONS])
     p.set_defaults(func=cmd_lifecycle)
-    p = sub.add_parser('param', help='get or set a parameter')
-    p.add_argument('action', choices=['get', 'set'])
-    p.add_argument('node')
-    p.add_argument('name')
-    p.add_argument('value', nargs='?')
-    p.set_defaults(func=cmd_param)
-    p = sub.add_parser('echo', help='print messages of a topic')
-    p.add_argument('topic')
-    p.add_argument('--count', type=int, default=1)
-    p.set_defaults(func=cmd_echo)
+    ros_commands.add_parsers(sub)
     return parser
 
 
@@ -271,7 +191,7 @@ def main(argv: list[str] | None = None) -> int:
     """Entry point; exit code 0 on success, 1 on a refused or failed command."""
     ns = build_parser().parse_args(argv)
     rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
-    cli = _Cli(ns.timeout)
+    cli = CliSession(ns.timeout)
     try:
         text = ns.func(cli, ns)
         if text:
@@ -282,6 +202,9 @@ def main(argv: list[str] | None = None) -> int:
         return 1
     except KeyboardInterrupt:
         return 130
+    except Exception as exc:
+        print(f'slip_cli: error: {exc!r}', file=sys.stderr)
+        return 1
     finally:
         cli.close()
         rclpy.try_shutdown()

@@ -7,12 +7,22 @@ import math
 import numpy as np
 import pytest
 
-from slip_control.core.contact import ContactProperties, ContactSource, FingerContact
-from slip_bringup.core.metrics import (cumulative_integral, estimation_spread, hold_metrics,
-                                       linear_slip_distance, rotational_slip_angle, to_middle,
-                                       tracking_errors)
-from slip_control.core.trajectory import TrapezoidalTrajectory
+from slip_bringup.core.excitation import fit_sine, is_excited
+from slip_bringup.core.metrics import (
+    cumulative_integral,
+    estimation_spread,
+    force_stats,
+    hold_metrics,
+    last_valid,
+    linear_slip_distance,
+    rotational_slip_angle,
+    to_middle,
+    tracking_errors,
+)
+from slip_bringup.core.phases import StateChange, mode_ends, phase_at, phases
 from slip_cell_common.core.frames import FrameParams, planar_from_middle, planar_to_middle
+from slip_control.core.contact import ContactProperties, ContactSource, FingerContact
+from slip_control.core.trajectory import TrapezoidalTrajectory
 
 FRAMES = FrameParams()
 
@@ -97,3 +107,60 @@ def test_estimation_spread_uses_valid_estimates_only() -> None:
     assert s1.mu_c.sd == pytest.approx(np.std([0.4, 0.44], ddof=1))
     assert s1.r.mean == pytest.approx(0.006) and s1.n_rotational_valid == 2
     assert s2.mu_c.sd == pytest.approx(0.0) and s2.n_linear_valid == 3 and s2.n_runs == 3
+
+
+def test_last_valid_takes_the_last_complete_value_not_a_mean() -> None:
+    nan = math.nan
+    # Linear phase: r still NaN (and not valid); rotational phase: r = 5 mm ± 0.1 mm.
+    r = last_valid([nan, 0.005], [nan, 1e-4], [False, True])
+    assert (r.value, r.std, r.index) == (0.005, 1e-4, 1)
+    # A later partial set (valid flag down, or a NaN) does not replace it.
+    r = last_valid([0.004, 0.005, nan, 0.009], [1e-4, 2e-4, nan, nan], [True, True, True, False])
+    assert (r.value, r.std, r.index) == (0.005, 2e-4, 1)
+    none = last_valid([nan], [nan], [True])
+    assert math.isnan(none.value) and none.index == -1
+
+
+def test_force_stats_ignore_nan() -> None:
+    s = force_stats([4.0, math.nan, 6.0, 5.0])
+    assert (s.min, s.max, s.mean, s.n, s.span) == (4.0, 6.0, 5.0, 3, 2.0)
+    assert s.sd == pytest.approx(1.0)
+    assert force_stats([math.nan]).n == 0
+
+
+@pytest.mark.parametrize('rate', [500.0, 120.0])
+def test_sine_is_found_only_where_it_is(rate: float) -> None:
+    rng = np.random.default_rng(3)
+    t = 100.0 + np.arange(0.0, 4.8, 1.0 / rate) + rng.uniform(0.0, 2e-4, int(4.8 * rate))
+    sine = 10.0 + 5.0 * np.sin(2 * np.pi * 4.0 * (t - 99.93))
+    fit = fit_sine(t, sine + rng.normal(0.0, 0.05, t.size), 4.0)
+    assert fit.amplitude == pytest.approx(5.0, rel=0.01) and fit.explained > 0.99
+    assert fit.offset == pytest.approx(10.0, abs=0.05) and is_excited(fit, 5.0)
+    assert not is_excited(fit_sine(t, sine, 8.0), 5.0)           # another frequency
+    assert not is_excited(fit_sine(t, np.full(t.size, 4.0), 4.0), 5.0)     # constant
+    step = np.where(t < t[t.size // 2], 5.0, 25.0)
+    assert not is_excited(fit_sine(t, step, 4.0), 5.0)            # a step
+    held = 4.0 + np.abs(rng.normal(0.0, 3.0, t.size))             # a controller's output
+    assert not is_excited(fit_sine(t, held, 4.0), 5.0)
+    assert not is_excited(fit_sine(t[:3], sine[:3], 4.0), 5.0)    # too few samples
+    with pytest.raises(ValueError):
+        fit_sine(t, sine, 0.0)
+
+
+def test_phases_and_aborts_from_state_changes() -> None:
+    changes = [StateChange(1.0, 0, 'off'), StateChange(2.0, 4, 'set_mode: HOLD'),
+               StateChange(2.5, 4, 'velocity stale: slip term 0, no decrease'),
+               StateChange(3.0, 2, 'set_mode: LINEAR 0.0200 m in 2.000 s'),
+               StateChange(4.0, 4, 'LINEAR ended: velocity stale'),
+               StateChange(4.1, 4, 'LINEAR ended: velocity stale'),     # safe-hold toggle
+               StateChange(6.0, 1, 'set_mode: ROTATIONAL'),
+               StateChange(8.0, 4, 'ROTATIONAL ended: done')]
+    runs = phases(changes, t_begin=1.5, t_end=9.0)
+    assert [(p.mode, p.t_start, p.t_end) for p in runs] == [
+        ('off', 1.5, 2.0), ('hold', 2.0, 3.0), ('linear', 3.0, 4.0), ('hold', 4.0, 6.0),
+        ('rotational', 6.0, 8.0), ('hold', 8.0, 9.0)]
+    ends = mode_ends(changes)
+    assert [(e.mode, e.t, e.success, e.message) for e in ends] == [
+        ('linear', 4.0, False, 'velocity stale'), ('rotational', 8.0, True, 'done')]
+    assert phase_at(runs, 5.0).mode == 'hold' and phase_at(runs, 0.5) is None
+    assert phases([], 0.0, 1.0) == []

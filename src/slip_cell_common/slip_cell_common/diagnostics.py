@@ -1,24 +1,28 @@
-"""Publish ``diagnostic_msgs/DiagnosticArray`` on ``/diagnostics`` (diagnostic_updater is not on PyPI).
+"""Publish ``diagnostic_msgs/DiagnosticArray`` on ``/diagnostics``.
+
+(diagnostic_updater is not on PyPI.)
 
 Tasks are callables ``(now_s) -> Report``; statuses are named ``"<node>: <task>"`` and carry the
 hardware id (port or address). Published on a node-clock timer (1 Hz by default).
 """
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy.node import Node
 
-from slip_cell_common.qos import DIAGNOSTICS
+from slip_cell_common.core import names
 from slip_cell_common.core.monitors import Level, Report
+from slip_cell_common.qos import DIAGNOSTICS
+from slip_cell_common.time_conv import clock_seconds
 
 Task = Callable[[float], Report]
 
 
 def now_s(node: Node) -> float:
     """The node clock (sim time when ``use_sim_time``) in seconds."""
-    return node.get_clock().now().nanoseconds * 1e-9
+    return clock_seconds(node.get_clock())
 
 
 class DiagnosticsPublisher:
@@ -28,7 +32,7 @@ class DiagnosticsPublisher:
         self._node = node
         self.hardware_id = hardware_id
         self._tasks: list[tuple[str, Task]] = []
-        self._pub = node.create_publisher(DiagnosticArray, '/diagnostics', DIAGNOSTICS)
+        self._pub = node.create_publisher(DiagnosticArray, names.DIAGNOSTICS, DIAGNOSTICS)
         self._timer = node.create_timer(period_s, self.publish)
 
     def add(self, name: str, task: Task) -> None:
@@ -42,7 +46,7 @@ class DiagnosticsPublisher:
         for name, task in self._tasks:
             try:
                 report = task(t)
-            except Exception as exc:  # noqa: BLE001 - a diagnostics bug must not kill the node
+            except Exception as exc:
                 report = Report(Level.ERROR, f'diagnostic task failed: {exc!r}')
             out.append(DiagnosticStatus(
                 level=bytes([int(report.level)]), name=f'{self._node.get_name()}: {name}',

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import signal
 import sys
-from typing import Callable, Sequence
+from collections.abc import Callable, Sequence
 
 import rclpy
 from lifecycle_msgs.msg import State
@@ -28,7 +28,7 @@ class _StopFlag:
     def __init__(self) -> None:
         self.signal_name = ''
 
-    def __call__(self, signum: int, frame: object) -> None:  # noqa: ARG002
+    def __call__(self, signum: int, frame: object) -> None:
         self.signal_name = signal.Signals(signum).name
 
 
@@ -51,7 +51,7 @@ def autostart(node: LifecycleNode) -> bool:
 
 
 def _lifecycle_state(node: LifecycleNode) -> int:
-    return node._state_machine.current_state[0]  # noqa: SLF001 - no public getter in rclpy 7.1
+    return node._state_machine.current_state[0]
 
 
 def shutdown_lifecycle(node: LifecycleNode) -> None:
@@ -93,7 +93,7 @@ def run_nodes(factories: Sequence[Callable[[], Node]], args: list[str] | None = 
             executor.spin_once(timeout_sec=0.1)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
-    except Exception as exc:  # noqa: BLE001 - report, stop devices safely, exit non-zero
+    except Exception as exc:
         if nodes:
             nodes[0].get_logger().fatal(f'unhandled error: {exc!r}')
         else:
@@ -106,7 +106,7 @@ def run_nodes(factories: Sequence[Callable[[], Node]], args: list[str] | None = 
             if isinstance(node, LifecycleNode):
                 try:
                     shutdown_lifecycle(node)
-                except Exception as exc:  # noqa: BLE001 - keep stopping the others
+                except Exception as exc:
                     node.get_logger().error(f'shutdown transition failed: {exc!r}')
         executor.shutdown()
         for node in nodes:

@@ -1,4 +1,4 @@
-"""Named QoS profiles of the cell (ros_interfaces spec §4.1).
+"""Named QoS profiles of the cell (ros_interfaces §4.1).
 
 A best-effort subscriber matches a reliable publisher, never the reverse, so drivers always
 publish reliable and high-rate consumers subscribe best effort.

@@ -11,7 +11,8 @@ import subprocess
 import sys
 import threading
 from pathlib import Path
-from typing import Any, Callable, Optional, Sequence
+from typing import Any
+from collections.abc import Callable, Sequence
 
 from slip_cell_common.calls import call_service, spin_until  # noqa: F401 (re-export)
 
@@ -28,7 +29,7 @@ class SpinThread:
         slice_s: ``spin_once`` timeout [s]: the longest `stop` waits for the thread.
     """
 
-    def __init__(self, executor: Any, on_start: Optional[Callable[[], Any]] = None,
+    def __init__(self, executor: Any, on_start: Callable[[], Any] | None = None,
                  slice_s: float = 0.05) -> None:
         self.executor = executor
         self._on_start = on_start
@@ -81,7 +82,7 @@ class NodeProcess:
                  cwd: Path | None = None) -> None:
         self.argv = list(argv)
         self.log_path = log_path
-        self._log = open(log_path, 'wb')  # noqa: SIM115 - closed in stop()
+        self._log = open(log_path, 'wb')
         self.proc = subprocess.Popen(self.argv, stdout=self._log, stderr=subprocess.STDOUT,
                                      env=env if env is not None else os.environ.copy(),
                                      cwd=cwd, start_new_session=True)
@@ -97,7 +98,8 @@ class NodeProcess:
         return self.proc.poll() is None
 
     def stop(self, timeout_s: float = 8.0) -> int:
-        """SIGINT, wait up to ``timeout_s``, then SIGKILL the process group; returns the exit code."""
+        """SIGINT, wait up to ``timeout_s``, then SIGKILL the process group; returns the exit
+        code."""
         if self.proc.poll() is None:
             self.proc.send_signal(signal.SIGINT)
             try:

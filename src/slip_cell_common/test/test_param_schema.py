@@ -6,8 +6,8 @@ from dataclasses import dataclass, field
 
 import pytest
 
-from slip_cell_common.core.param_schema import (ParameterError, flatten, from_flat,
-                                                   replace_flat, specs)
+from slip_cell_common.core.param_schema import (ParameterError, flatten, flattened_group,
+                                                   from_flat, replace_flat, specs)
 
 
 @dataclass(frozen=True)
@@ -79,3 +79,81 @@ def test_nested_groups_keep_their_factory_defaults() -> None:
     built = from_flat(TwoGroups, {'squeeze.kp': 3.0})
     assert built.release == Gains(kp=-8.0, mode='finger_1')
     assert built.squeeze.kp == 3.0
+
+
+# --- flattened groups: a node's class nests a core's class without copying its fields ---------
+@dataclass(frozen=True)
+class Stream:
+    rate: float = field(default=100.0, metadata={'unit': 'Hz', 'range': (1.0, 1000.0)})
+    raw: bool = False
+
+
+@dataclass(frozen=True)
+class NodeCfg:
+    name: str = 'a'
+    stream: Stream = flattened_group(Stream)
+    gains: Gains = field(default_factory=Gains)
+
+
+def test_flattened_group_keeps_the_parent_level_names() -> None:
+    assert [s.name for s in specs(NodeCfg)] == ['name', 'rate', 'raw', 'gains.kp', 'gains.mode']
+    assert flatten(NodeCfg()) == {'name': 'a', 'rate': 100.0, 'raw': False, 'gains.kp': 2.0,
+                                  'gains.mode': 'mean'}
+    rate = next(s for s in specs(NodeCfg) if s.name == 'rate')
+    assert (rate.low, rate.high, rate.unit) == (1.0, 1000.0, 'Hz')
+
+
+def test_flattened_group_rebuilds_and_validates_from_flat_names() -> None:
+    cfg = from_flat(NodeCfg, {'rate': 50, 'raw': True, 'gains.kp': 4.0})
+    assert cfg.stream == Stream(rate=50.0, raw=True) and cfg.gains.kp == 4.0
+    assert from_flat(NodeCfg, flatten(cfg)) == cfg
+    assert replace_flat(cfg, {'rate': 10.0}).stream.rate == 10.0
+    with pytest.raises(ParameterError) as err:
+        from_flat(NodeCfg, {'rate': 0.5, 'stream.rate': 10.0})
+    assert 'rate = 0.5 below 1.0 Hz' in str(err.value)
+    assert "unknown parameter 'stream.rate'" in str(err.value)
+
+
+def test_flattened_group_default_factory_defaults_are_kept() -> None:
+    @dataclass(frozen=True)
+    class Fast:
+        stream: Stream = flattened_group(lambda: Stream(rate=500.0))
+
+    assert specs(Fast)[0].default == 500.0
+    assert from_flat(Fast, {'raw': True}).stream == Stream(rate=500.0, raw=True)
+
+
+def test_flattened_collisions_are_rejected() -> None:
+    @dataclass(frozen=True)
+    class Twice:
+        rate: float = 1.0
+        stream: Stream = flattened_group(Stream)
+
+    @dataclass(frozen=True)
+    class Gains2:
+        gains: float = 1.0
+
+    @dataclass(frozen=True)
+    class LeafAndGroup:
+        gains: Gains = field(default_factory=Gains)
+        more: Gains2 = flattened_group(Gains2)
+
+    @dataclass(frozen=True)
+    class GroupAfterLeaf:
+        more: Gains2 = flattened_group(Gains2)
+        gains: Gains = field(default_factory=Gains)
+
+    for cls in (Twice, LeafAndGroup, GroupAfterLeaf):
+        with pytest.raises(TypeError, match="'(rate|gains|gains.kp)' .* collides"):
+            specs(cls)
+        with pytest.raises(TypeError, match='collides'):
+            from_flat(cls, {})
+
+
+def test_only_groups_can_be_flattened() -> None:
+    @dataclass(frozen=True)
+    class Bad:
+        rate: float = field(default=1.0, metadata={'flatten': True})
+
+    with pytest.raises(TypeError, match='only a dataclass group'):
+        specs(Bad)

@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: Apache-2.0
 """Robot-arm backends of the experiment runner (control_and_estimation §5.1; CE-9).
 
-The runner's step machine (`slip_control.core.runner_sequences.SequenceRunner`) drives the arm
+The runner's step machine (`slip_control.core.sequence_runner.SequenceRunner`) drives the arm
 through three calls of the `ArmBackend` seam, each non-blocking: it returns a finished
 `CallResult` or a `Pending` that the runner polls.
 
@@ -16,7 +16,9 @@ through three calls of the `ArmBackend` seam, each non-blocking: it returns a fi
                               position [m], intrinsic xyz Euler angles [rad]).
 ``move_joints``               absolute joint move [rad] in ``duration`` [s].
 ``ready()``                   ``(ok, text)`` for the ``arm`` diagnostics task.
-``fault()``                   '' or a reason to abort a running sequence (e.g. object dropped).
+``fault()``                   '' or a reason to abort a running sequence (an arm fault).
+``object_dropped()``          '' or how the backend saw the object leave the grasp; the
+                              runner then marks it lost and asks for a re-grasp.
 ``destroy()``                 release ROS entities.
 ============================  ==================================================================
 
@@ -28,10 +30,10 @@ Backends:
   (``slip_msgs/MoveGripper``, returns at once with ``expected_end`` on the sim clock),
   ``sim/reset_scene`` (``slip_msgs/ResetScene``) for ``move_to_pickup`` (the object is stood on
   the table between the open fingers: the simulated equivalent of going to the object), and
-  ``sim/state`` (``slip_msgs/SimState``) for faults (``object_dropped``). The simulated cell
-  has no arm joints, so ``move_joints`` succeeds without motion.
-* ``ur`` (`ur_arm`): a real UR arm on a full ROS install. **Not available on this install**
-  (no ``control_msgs``, no ``ur_robot_driver``): constructing it raises `ArmUnavailableError`.
+  ``sim/state`` (``slip_msgs/SimState``) for ``object_dropped``. The simulated cell has no
+  arm joints, so ``move_joints`` succeeds without motion, and no arm faults.
+* ``ur`` (`ur_arm`): a real UR arm through ``ur_robot_driver``. **Not implemented yet**:
+  constructing it raises `ArmUnavailableError`.
   What a UR backend must implement — the seam, not a fake:
 
   - ``move_gripper``: read the current tool pose (``tool0`` in ``base``, e.g. from TF or the
@@ -46,7 +48,8 @@ Backends:
     .motion_duration`).
   - ``move_joints``: one ``FollowJointTrajectory`` point (``reset_joints.*``).
   - ``ready``: controller manager reachable and the trajectory controller active;
-    ``fault``: protective or emergency stop, program not running.
+    ``fault``: protective or emergency stop, program not running; ``object_dropped``: ''
+    (a UR has no drop sensor: the slip controller's "contact lost" is the runner's cue).
 """
 from __future__ import annotations
 
@@ -59,8 +62,9 @@ from rclpy.node import Node
 from slip_msgs.msg import SimState
 from slip_msgs.srv import MoveGripper, ResetScene
 
-from slip_control.core.runner_sequences import CallResult, CallReturn
+from slip_control.core.runner_cell import CallResult, CallReturn
 from slip_cell_common.qos import SENSOR_SUB
+from slip_cell_common.core import names
 
 
 class ArmUnavailableError(RuntimeError):
@@ -141,6 +145,9 @@ class ArmBackend(Protocol):
     def fault(self) -> str:
         """'' or the reason the running sequence must stop."""
 
+    def object_dropped(self) -> str:
+        """'' or how the object was seen to leave the grasp."""
+
     def destroy(self) -> None:
         """Release ROS entities."""
 
@@ -178,6 +185,10 @@ class MockArm:
         """Never faults."""
         return ''
 
+    def object_dropped(self) -> str:
+        """No object: never dropped."""
+        return ''
+
     def destroy(self) -> None:
         """Nothing to release."""
 
@@ -196,10 +207,10 @@ class SimArm:
     def __init__(self, node: Node, clock_tolerance: float) -> None:
         self._node = node
         self._tol = clock_tolerance
-        self._move = node.create_client(MoveGripper, 'sim/move_gripper')
-        self._reset = node.create_client(ResetScene, 'sim/reset_scene')
+        self._move = node.create_client(MoveGripper, names.SIM_MOVE_GRIPPER_SRV)
+        self._reset = node.create_client(ResetScene, names.SIM_RESET_SCENE_SRV)
         self._state: SimState | None = None
-        self._sub = node.create_subscription(SimState, 'sim/state', self._on_state, SENSOR_SUB)
+        self._sub = node.create_subscription(SimState, names.SIM_STATE, self._on_state, SENSOR_SUB)
 
     def _on_state(self, msg: SimState) -> None:
         self._state = msg
@@ -213,12 +224,13 @@ class SimArm:
 
         def convert(res: Any) -> CallResult:
             if not res.success:
-                return CallResult(False, f'sim/move_gripper refused: {res.message}')
+                return CallResult(False, f'{names.SIM_MOVE_GRIPPER_SRV} refused: {res.message}')
             end = float(res.expected_end)
             if not math.isfinite(end) or abs(end - expected) > self._tol:
                 return CallResult(False, (
-                    f'sim/move_gripper expected_end = {end:.3f} s is not on this node\'s clock '
-                    f'(expected about {expected:.3f} s): run the runner with use_sim_time'))
+                    f'{names.SIM_MOVE_GRIPPER_SRV} expected_end = {end:.3f} s is not on this '
+                    f'node\'s clock (expected about {expected:.3f} s): run the runner with '
+                    'use_sim_time'))
             return CallResult(True, res.message or 'moving', until=end)
         return ServiceCall(self._move, req, convert)
 
@@ -244,9 +256,13 @@ class SimArm:
         return True, 'simulated arm connected'
 
     def fault(self) -> str:
-        """'object dropped' when ``sim/state`` says so."""
+        """The simulated arm does not fault."""
+        return ''
+
+    def object_dropped(self) -> str:
+        """'the object was dropped' when ``sim/state`` says so."""
         if self._state is not None and self._state.object_dropped:
-            return 'the object was dropped (sim/state.object_dropped)'
+            return f'the object was dropped ({names.SIM_STATE}.object_dropped)'
         return ''
 
     def destroy(self) -> None:
@@ -257,24 +273,17 @@ class SimArm:
 
 
 def ur_arm(node: Node) -> NoReturn:
-    """UR arm on a full ROS install: not available here (see the module docstring).
+    """UR arm: not implemented yet (see the module docstring for the seam it must fill).
 
     Raises:
-        ArmUnavailableError: always on this install.
+        ArmUnavailableError: always.
     """
     del node
-    try:
-        import control_msgs  # noqa: F401  (full installs only)
-    except ImportError as exc:
-        raise ArmUnavailableError(
-            "arm backend 'ur' is not available on this install: control_msgs and the UR "
-            "driver are not installable from PyPI; use arm.backend 'sim' or 'mock' "
-            '(the seam a UR backend must implement is documented in '
-            'slip_control.arm_backends)') from exc
     raise ArmUnavailableError(
-        "arm backend 'ur' is not implemented in this package yet: implement the "
-        'ArmBackend seam documented in slip_control.arm_backends (move_gripper, '
-        'move_to_pickup, move_joints, ready, fault, destroy) against the UR driver')
+        "arm backend 'ur' is not implemented yet: implement the ArmBackend seam documented in "
+        'slip_control.arm_backends (move_gripper, move_to_pickup, move_joints, ready, fault, '
+        "object_dropped, destroy) against the UR driver; use arm.backend 'sim' or 'mock' "
+        'meanwhile')
 
 
 def make_arm(backend: str, node: Node, clock_tolerance: float) -> ArmBackend:

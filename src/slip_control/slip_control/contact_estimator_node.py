@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: Apache-2.0
 """``contact_estimator``: contact-property estimation node (control_and_estimation §3).
 
-Thin rclpy node around `slip_control.core.estimator.ContactEstimator`:
+Thin rclpy node around `slip_control.core.contact_estimator.ContactEstimator`:
 
 * subscribes ``finger_k/ft/wrench`` and ``finger_k/slip/twist`` (QoS SENSOR_SUB); every
   callback replaces one immutable `SensorSnapshot`; each finger-1 twist steps the estimator
@@ -31,16 +31,17 @@ from slip_msgs.msg import ContactProperties as ContactPropertiesMsg
 from slip_msgs.srv import GetContactProperties, StartEstimation
 
 from slip_control.core.contact import ContactSource
-from slip_control.core.estimator import (ContactEstimator, EstimationPhase, EstimatorReport,
-                                         start_precheck)
+from slip_control.core.contact_estimator import (ContactEstimator, EstimationPhase,
+                                                 EstimatorReport, start_precheck)
 from slip_control.core.params import ContactEstimatorParams
 from slip_control.core.signals import SensorSnapshot
-from slip_control.ros_conv import (nanoseconds_to_stamp, properties_to_msg, twist_from_msg, 
-                                   wrench_from_msg)
+from slip_control.slip_msgs_conv import properties_to_msg, twist_from_msg, wrench_from_msg
 from slip_cell_common.diagnostics import DiagnosticsPublisher
+from slip_cell_common.core import names
 from slip_cell_common.node_main import run_node
 from slip_cell_common.param_binding import ParameterBinding
 from slip_cell_common.qos import LATCHED, QUIET_SUB, SENSOR_SUB, overridable
+from slip_cell_common.time_conv import clock_seconds, nanoseconds_to_stamp
 from slip_cell_common.core.monitors import Level, Report
 from slip_cell_common.core.param_schema import ParameterError
 
@@ -48,9 +49,9 @@ from slip_cell_common.core.param_schema import ParameterError
 POLL_PERIOD_S = 0.02
 
 
-_SOURCE_TOPICS = {'finger 1 wrench': 'finger_1/ft/wrench', 'finger 2 wrench': 'finger_2/ft/wrench',
-                  'finger 1 velocity': 'finger_1/slip/twist',
-                  'finger 2 velocity': 'finger_2/slip/twist'}
+_SOURCE_TOPICS = {'finger 1 wrench': names.ft_wrench(1), 'finger 2 wrench': names.ft_wrench(2),
+                  'finger 1 velocity': names.slip_twist(1),
+                  'finger 2 velocity': names.slip_twist(2)}
 
 
 class ContactEstimatorNode(Node):
@@ -86,21 +87,21 @@ class ContactEstimatorNode(Node):
         self._last_t: float | None = None
         self._published = 0
 
-        self._pub = self.create_publisher(ContactPropertiesMsg, 'contact/properties', LATCHED,
+        self._pub = self.create_publisher(ContactPropertiesMsg, names.CONTACT_PROPERTIES, LATCHED,
                                           qos_overriding_options=overridable())
-        self.create_subscription(WrenchStamped, 'finger_1/ft/wrench',
+        self.create_subscription(WrenchStamped, names.ft_wrench(1),
                                  lambda m: self._on_wrench(1, m), SENSOR_SUB,
                                  event_callbacks=QUIET_SUB)
-        self.create_subscription(WrenchStamped, 'finger_2/ft/wrench',
+        self.create_subscription(WrenchStamped, names.ft_wrench(2),
                                  lambda m: self._on_wrench(2, m), SENSOR_SUB,
                                  event_callbacks=QUIET_SUB)
-        self.create_subscription(TwistStamped, 'finger_2/slip/twist', self._on_twist_2,
+        self.create_subscription(TwistStamped, names.slip_twist(2), self._on_twist_2,
                                  SENSOR_SUB, event_callbacks=QUIET_SUB)
         # Created last: when several samples are ready at once, the trigger is handled last.
-        self.create_subscription(TwistStamped, 'finger_1/slip/twist', self._on_twist_1,
+        self.create_subscription(TwistStamped, names.slip_twist(1), self._on_twist_1,
                                  SENSOR_SUB, event_callbacks=QUIET_SUB)
-        self.create_service(StartEstimation, 'contact/start', self._on_start)
-        self.create_service(GetContactProperties, 'contact/get_properties', self._on_get)
+        self.create_service(StartEstimation, names.CONTACT_START_SRV, self._on_start)
+        self.create_service(GetContactProperties, names.CONTACT_GET_PROPERTIES_SRV, self._on_get)
         self.create_timer(POLL_PERIOD_S, self._on_timer)
         self._binding.on_change(self._on_params)
         self._diag = DiagnosticsPublisher(self)
@@ -125,7 +126,7 @@ class ContactEstimatorNode(Node):
 
     def _now(self) -> float:
         """Node-clock time [s]; resets the phase window when the clock jumped backwards."""
-        t = self.get_clock().now().nanoseconds * 1e-9
+        t = clock_seconds(self.get_clock())
         if self._last_t is not None and t < self._last_t:
             self.get_logger().warn(f'clock jumped backwards by {self._last_t - t:.3f} s: '
                                    'discarding a running LINEAR/ROTATIONAL phase')
@@ -163,9 +164,9 @@ class ContactEstimatorNode(Node):
         self._handle(outcome.report)
         res.accepted, res.message = outcome.accepted, outcome.message
         if outcome.accepted:
-            self.get_logger().info(f'contact/start: {outcome.message}')
+            self.get_logger().info(f'{names.CONTACT_START_SRV}: {outcome.message}')
         else:
-            self.get_logger().warn(f'contact/start refused: {outcome.message}')
+            self.get_logger().warn(f'{names.CONTACT_START_SRV} refused: {outcome.message}')
         return res
 
     def _on_get(self, req: GetContactProperties.Request,
@@ -213,7 +214,7 @@ class ContactEstimatorNode(Node):
             self.get_clock().now().nanoseconds)))
         self._published += 1
         if self._published > 1:
-            self.get_logger().info(f'contact/properties: {props.describe()}')
+            self.get_logger().info(f'{names.CONTACT_PROPERTIES}: {props.describe()}')
 
     def _diagnose(self, t: float) -> Report:
         del t

@@ -155,12 +155,13 @@ class RosHarness:
         return out
 
     def node_time(self, node: object) -> float:
-        return node.get_clock().now().nanoseconds * 1e-9  # type: ignore[attr-defined]
+        from slip_cell_common.time_conv import clock_seconds
+        return clock_seconds(node.get_clock())  # type: ignore[attr-defined]
 
     def advance(self, t: float) -> None:
         """Publish ``/clock`` = ``t`` [s] and spin until every node under test has it."""
         from rosgraph_msgs.msg import Clock
-        from slip_control.ros_conv import seconds_to_stamp
+        from slip_cell_common.time_conv import seconds_to_stamp
         self.t = t
         self._clock.publish(Clock(clock=seconds_to_stamp(t)))
         ok = self.spin_until(lambda: all(self.node_time(n) >= t - 1e-9 for n in self.nodes),
@@ -172,7 +173,7 @@ class RosHarness:
     def publish(self, snap: SensorSnapshot, *, wrenches: bool = True,
                 twists: bool = True) -> None:
         """Publish a snapshot's samples (finger-1 twist last: it triggers the step)."""
-        from slip_control.ros_conv import twist_to_msg, wrench_to_msg
+        from slip_control.slip_msgs_conv import twist_to_msg, wrench_to_msg
         if wrenches:
             for k, w in ((1, snap.wrench_1), (2, snap.wrench_2)):
                 if w is not None:
@@ -215,7 +216,8 @@ class RosHarness:
             self.deliver(s, node, wrenches=wrenches, twists=twists)
 
     def publish_properties(self, props: ContactProperties) -> None:
-        from slip_control.ros_conv import properties_to_msg, seconds_to_stamp
+        from slip_cell_common.time_conv import seconds_to_stamp
+        from slip_control.slip_msgs_conv import properties_to_msg
         self._props.publish(properties_to_msg(props, seconds_to_stamp(self.t)))
 
     def close(self) -> None:

@@ -16,7 +16,7 @@ T0 = 100.0
 TRUTH = (TrueContact(mu_c=0.45, r=0.006), TrueContact(mu_c=0.40, r=0.005))
 
 
-def _estimator(harness, **params):  # noqa: ANN001, ANN202
+def _estimator(harness, **params):
     from rclpy.parameter import Parameter
     from slip_control.contact_estimator_node import ContactEstimatorNode
     overrides = [Parameter('use_sim_time', value=True)]
@@ -27,13 +27,13 @@ def _estimator(harness, **params):  # noqa: ANN001, ANN202
     return node
 
 
-def _latched_props(harness):  # noqa: ANN001, ANN202
+def _latched_props(harness):
     from slip_cell_common.qos import LATCHED
     from slip_msgs.msg import ContactProperties
     return harness.collect(ContactProperties, 'contact/properties', LATCHED)
 
 
-def _start(harness, phase: int, duration: float):  # noqa: ANN001, ANN202
+def _start(harness, phase: int, duration: float):
     from slip_msgs.srv import StartEstimation
     res = harness.call(StartEstimation, 'contact/start',
                        StartEstimation.Request(phase=phase, duration=duration))
@@ -41,7 +41,7 @@ def _start(harness, phase: int, duration: float):  # noqa: ANN001, ANN202
     return res
 
 
-def _get(harness):  # noqa: ANN001, ANN202
+def _get(harness):
     from slip_msgs.srv import GetContactProperties
     res = harness.call(GetContactProperties, 'contact/get_properties',
                        GetContactProperties.Request())
@@ -49,7 +49,7 @@ def _get(harness):  # noqa: ANN001, ANN202
     return res
 
 
-def test_exploration_publishes_valid_properties_latched(harness) -> None:  # noqa: ANN001
+def test_exploration_publishes_valid_properties_latched(harness) -> None:
     from slip_msgs.msg import ContactProperties
     from slip_msgs.srv import StartEstimation
     node = _estimator(harness)
@@ -98,7 +98,7 @@ def test_exploration_publishes_valid_properties_latched(harness) -> None:  # noq
     assert 'succeeded' in got.message
 
 
-def test_start_without_contact_fails_clearly_and_publishes_nothing(harness) -> None:  # noqa
+def test_start_without_contact_fails_clearly_and_publishes_nothing(harness) -> None:
     from slip_msgs.msg import ContactProperties
     from slip_msgs.srv import StartEstimation
     node = _estimator(harness)
@@ -132,7 +132,7 @@ def test_start_without_contact_fails_clearly_and_publishes_nothing(harness) -> N
     assert len(props) == 1                             # only the initial DEFAULT set
 
 
-def test_bad_start_requests_are_refused_with_reasons(harness) -> None:  # noqa: ANN001
+def test_bad_start_requests_are_refused_with_reasons(harness) -> None:
     from slip_msgs.srv import StartEstimation
     node = _estimator(harness)
     harness.play(exploration_linear(TRUTH, t0=T0 + 0.005, seed=7)[:2], node)
@@ -150,7 +150,7 @@ def test_bad_start_requests_are_refused_with_reasons(harness) -> None:  # noqa: 
         assert not res.accepted and text in res.message, (phase, duration, res.message)
 
 
-def test_preset_from_parameters_is_published_as_preset(harness, tmp_path: Path) -> None:  # noqa
+def test_preset_from_parameters_is_published_as_preset(harness, tmp_path: Path) -> None:
     from slip_msgs.msg import ContactProperties
     preset = tmp_path / 'presets.yaml'
     preset.write_text('wood:\n  finger_1: {mu_c: 0.5, r: 0.004}\n'
@@ -164,7 +164,7 @@ def test_preset_from_parameters_is_published_as_preset(harness, tmp_path: Path) 
     assert p.finger_1.n_linear == 0 and math.isnan(p.finger_1.mu_c_std)
 
 
-def test_missing_preset_refuses_to_start(ros_context, tmp_path: Path) -> None:  # noqa: ANN001
+def test_missing_preset_refuses_to_start(ros_context, tmp_path: Path) -> None:
     from rclpy.parameter import Parameter
     from slip_control.contact_estimator_node import ContactEstimatorNode
     from slip_cell_common.core.param_schema import ParameterError
@@ -174,7 +174,7 @@ def test_missing_preset_refuses_to_start(ros_context, tmp_path: Path) -> None:  
             Parameter('preset_name', value='steel')])
 
 
-def test_online_mode_refines_mu_c_during_controlled_slip(harness, tmp_path: Path) -> None:  # noqa
+def test_online_mode_refines_mu_c_during_controlled_slip(harness, tmp_path: Path) -> None:
     from slip_control.core.synthetic import controlled_slip
     from slip_msgs.msg import ContactProperties
     from slip_msgs.srv import StartEstimation

@@ -11,13 +11,15 @@ from pathlib import Path
 
 import pytest
 
+from slip_cell_common.time_conv import clock_seconds
+
 pytestmark = pytest.mark.ros
 
 FAST = {'release.wait': 0.1, 'grasp.wait': 0.1, 'step_timeout': 3.0,
         'motion_time.min': 0.1, 'motion_time.gain': 0.05}
 
 
-def _runner(harness, tmp_path: Path, **params):  # noqa: ANN001, ANN202
+def _runner(harness, tmp_path: Path, **params):
     from rclpy.parameter import Parameter
     from slip_control.experiment_runner_node import ExperimentRunnerNode
     values = {**FAST, 'recording.directory': str(tmp_path / 'bags'), **params}
@@ -25,16 +27,16 @@ def _runner(harness, tmp_path: Path, **params):  # noqa: ANN001, ANN202
         Parameter(k, value=v) for k, v in values.items()]))
 
 
-def _controller(harness):  # noqa: ANN001, ANN202
+def _controller(harness):
     from slip_control.slip_controller_node import SlipControllerNode
     return harness.add(SlipControllerNode(context=harness.context))
 
 
-def _bias_service(harness) -> list:  # noqa: ANN001
+def _bias_service(harness) -> list:
     from std_srvs.srv import Trigger
     calls: list = []
 
-    def bias(req, res):  # noqa: ANN001, ANN202
+    def bias(req, res):
         calls.append(req)
         res.success, res.message = True, 'biased'
         return res
@@ -43,7 +45,7 @@ def _bias_service(harness) -> list:  # noqa: ANN001
 
 
 def _run(harness, mode: str, *, timeout_s: float = 20.0, cancel_after: float | None = None,
-         **goal):  # noqa: ANN001, ANN202
+         **goal):
     from slip_msgs.action import RunExperiment
     client = harness.action_client(RunExperiment, 'experiment/run')
     assert harness.spin_until(client.server_is_ready, 10.0)
@@ -61,11 +63,21 @@ def _run(harness, mode: str, *, timeout_s: float = 20.0, cancel_after: float | N
     return result.result(), [f.phase for f in feedback]
 
 
-def _props(make_props):  # noqa: ANN001, ANN202
+def _rejected(harness, mode: str, **goal) -> bool:
+    """Send a goal and report whether the server rejected it in its goal response."""
+    from slip_msgs.action import RunExperiment
+    client = harness.action_client(RunExperiment, 'experiment/run')
+    assert harness.spin_until(client.server_is_ready, 10.0)
+    send = client.send_goal_async(RunExperiment.Goal(mode=mode, **goal))
+    assert harness.spin_until(send.done, 10.0)
+    return not send.result().accepted
+
+
+def _props(make_props):
     return make_props(mu_c=0.45, r=0.006)
 
 
-def test_release_grasp_and_hold_mode_with_recording(harness, make_props,  # noqa: ANN001
+def test_release_grasp_and_hold_mode_with_recording(harness, make_props,
                                                     tmp_path: Path) -> None:
     from action_msgs.msg import GoalStatus
     from slip_cell_common.bag_io import read_messages
@@ -103,19 +115,22 @@ def test_release_grasp_and_hold_mode_with_recording(harness, make_props,  # noqa
     assert Path(res.result.bag_path).name == 'hold_test_2'   # never overwrites a bag
 
 
-def test_refusals_timeouts_and_cancel(harness, make_props, tmp_path: Path) -> None:  # noqa
+def test_refusals_timeouts_and_cancel(harness, make_props, tmp_path: Path) -> None:
     from action_msgs.msg import GoalStatus
-    _runner(harness, tmp_path, step_timeout=0.5)
-    res, _ = _run(harness, 'juggle')
-    assert res.status == GoalStatus.STATUS_ABORTED
-    assert "unknown runner mode 'juggle'" in res.result.message and 'demo' in res.result.message
-    res, _ = _run(harness, 'linear_slippage', duration=2.0)
-    assert 'needs distance' in res.result.message
-    res, _ = _run(harness, 'hold_mode', duration=1.0, recording_name='ab')
-    assert 'recording_name' in res.result.message and '>= 3 characters' in res.result.message
-    res, _ = _run(harness, 'hold_mode', duration=1.0)
-    assert res.status == GoalStatus.STATUS_ABORTED
-    assert 'precondition not met: holding (is False)' in res.result.message
+    runner = _runner(harness, tmp_path, step_timeout=0.5)
+    # Invalid goals are rejected in the goal response (never accepted, then aborted); the
+    # reason is logged and kept for diagnostics.
+    assert _rejected(harness, 'juggle')
+    assert "unknown runner mode 'juggle'" in runner.last_rejection
+    assert 'demo' in runner.last_rejection
+    assert _rejected(harness, 'linear_slippage', duration=2.0)
+    assert 'needs distance' in runner.last_rejection
+    assert _rejected(harness, 'hold_mode', duration=1.0, recording_name='ab')
+    assert 'recording_name' in runner.last_rejection
+    assert '>= 3 characters' in runner.last_rejection
+    assert _rejected(harness, 'hold_mode', duration=1.0)
+    assert 'precondition not met: holding (is False)' in runner.last_rejection
+    assert "run 'grasp' or 'pick_up_object' first" in runner.last_rejection
 
     # No slip controller running: the first step times out and says what it waited for.
     res, _ = _run(harness, 'release')
@@ -124,7 +139,7 @@ def test_refusals_timeouts_and_cancel(harness, make_props, tmp_path: Path) -> No
             '(service slip_control/set_mode not available)') in res.result.message
 
 
-def test_cancel_runs_cleanup(harness, make_props, tmp_path: Path) -> None:  # noqa: ANN001
+def test_cancel_runs_cleanup(harness, make_props, tmp_path: Path) -> None:
     from action_msgs.msg import GoalStatus
     runner = _runner(harness, tmp_path)
     _controller(harness)
@@ -139,20 +154,20 @@ def test_cancel_runs_cleanup(harness, make_props, tmp_path: Path) -> None:  # no
     assert Path(res.result.bag_path).exists()                 # cleanup stopped the recorder
 
 
-def test_sim_backend_moves_and_checks_the_clock(harness, tmp_path: Path) -> None:  # noqa
+def test_sim_backend_moves_and_checks_the_clock(harness, tmp_path: Path) -> None:
     from action_msgs.msg import GoalStatus
     from slip_msgs.srv import MoveGripper, ResetScene
     moves: list = []
     offset = [0.0]
 
-    def move(req, res):  # noqa: ANN001, ANN202
+    def move(req, res):
         moves.append((req.lift, req.lateral, req.rotation, req.duration))
-        now = harness.node.get_clock().now().nanoseconds * 1e-9
+        now = clock_seconds(harness.node.get_clock())
         res.success, res.message = True, 'moving'
         res.expected_end = now + req.duration + offset[0]
         return res
 
-    def reset(req, res):  # noqa: ANN001, ANN202
+    def reset(req, res):
         res.success, res.message = True, f'scene reset, object_on_table={req.object_on_table}'
         return res
     harness.node.create_service(MoveGripper, 'sim/move_gripper', move)
@@ -160,10 +175,10 @@ def test_sim_backend_moves_and_checks_the_clock(harness, tmp_path: Path) -> None
     runner = _runner(harness, tmp_path, **{'arm.backend': 'sim'})
     _controller(harness)
     assert runner.arm.name == 'sim'
-    res, _ = _run(harness, 'go_to_object')
-    assert res.status == GoalStatus.STATUS_ABORTED
+    assert _rejected(harness, 'go_to_object')
     assert 'precondition not met: gripper_open (is False), joints_reset (is False)' \
-        in res.result.message
+        in runner.last_rejection
+    assert "run 'release', then 'reset_joints' first" in runner.last_rejection
     res, _ = _run(harness, 'grasp')
     assert res.status == GoalStatus.STATUS_SUCCEEDED, res.result.message
     res, _ = _run(harness, 'go_to_hinge_pose')
@@ -178,10 +193,54 @@ def test_sim_backend_moves_and_checks_the_clock(harness, tmp_path: Path) -> None
     assert "is not on this node's clock" in res.result.message
 
 
-def test_ur_backend_is_refused_clearly(ros_context) -> None:  # noqa: ANN001
+def test_ur_backend_is_refused_clearly(ros_context) -> None:
     from rclpy.parameter import Parameter
     from slip_control.arm_backends import ArmUnavailableError
     from slip_control.experiment_runner_node import ExperimentRunnerNode
-    with pytest.raises(ArmUnavailableError, match='not available on this install'):
+    with pytest.raises(ArmUnavailableError, match="'ur' is not implemented yet"):
         ExperimentRunnerNode(context=ros_context,
                              parameter_overrides=[Parameter('arm.backend', value='ur')])
+
+
+@pytest.mark.slow
+def test_est_contact_then_pick_up_object_then_a_slip_mode_is_accepted(
+        harness, make_props, tmp_path: Path) -> None:
+    """Issue 18: the documented order needs no extra `grasp` before a slip mode."""
+    from action_msgs.msg import GoalStatus
+    from slip_cell_common.time_conv import seconds_to_stamp
+    from slip_control.slip_msgs_conv import properties_to_msg
+    from slip_msgs.msg import SlipControllerState
+    from slip_msgs.srv import GetContactProperties, StartEstimation
+    from slip_cell_common.qos import LATCHED
+    props = _props(make_props)
+    runner = _runner(harness, tmp_path, **{'estimation.descent_time': 0.1,
+                                          'estimation.linear_window': 0.2,
+                                          'estimation.twist_time': 0.1,
+                                          'estimation.rotational_window': 0.3})
+    _controller(harness)
+    _bias_service(harness)
+    harness.node.create_service(StartEstimation, 'contact/start', lambda req, res: (
+        setattr(res, 'accepted', True), setattr(res, 'message', 'started'), res)[-1])
+
+    def get_properties(req, res):
+        res.properties = properties_to_msg(props, seconds_to_stamp(1.0))
+        res.valid, res.message = True, 'estimated'
+        return res
+    harness.node.create_service(GetContactProperties, 'contact/get_properties', get_properties)
+    harness.publish_properties(props)
+    states = harness.collect(SlipControllerState, 'slip_control/state', LATCHED)
+
+    for mode in ('release', 'reset_joints', 'go_to_object', 'est_contact', 'pick_up_object'):
+        res, _ = _run(harness, mode, timeout_s=60.0)
+        assert res.status == GoalStatus.STATUS_SUCCEEDED, (mode, res.result.message)
+    assert runner.flags.holding and runner.flags.contact_estimated
+    res, phases = _run(harness, 'linear_slippage', duration=2.0, distance=0.02,
+                       cancel_after=0.5)
+    assert 'LINEAR slip' in phases, phases   # not refused: the slip segment ran
+    # LINEAR accepted: its state, or (it ends at once here) the HOLD after it saying so.
+    assert any(s.mode == 2 or s.reason.startswith('LINEAR ended') for s in states), \
+        [(s.mode, s.reason) for s in states]
+    assert res.status == GoalStatus.STATUS_CANCELED, res.result.message
+    # No sensor streams in this graph: the trajectory itself ends "velocity stale", and the
+    # result says so instead of claiming the slip.
+    assert "'LINEAR slip': velocity stale" in res.result.message

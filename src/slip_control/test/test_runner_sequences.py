@@ -10,14 +10,15 @@ import numpy as np
 import pytest
 
 from slip_control.core.contact import ContactProperties, ContactSource
-from slip_control.core.controllers import SlipMode
-from slip_control.core.estimator import EstimationPhase
+from slip_control.core.controllers import SlipMode, SlipResult
+from slip_control.core.contact_estimator import EstimationPhase
 from slip_control.core.mode_switch import ModeRequest
 from slip_control.core.params import ExperimentRunnerParams
-from slip_control.core.runner_sequences import (FORCE_PROFILE_DURATION, RUNNER_MODES, Action,
-                                                CallResult, CellFlags, PoseOffset,
-                                                SequenceRunner, build_sequence,
-                                                force_tracking_profile)
+from slip_cell_common.core.force_profile import ForceTrackingProfile
+from slip_control.core.runner_cell import CallResult
+from slip_control.core.runner_sequences import RUNNER_MODES, build_sequence
+from slip_control.core.runner_steps import Action
+from slip_control.core.sequence_runner import CellFlags, PoseOffset, SequenceRunner
 
 P = ExperimentRunnerParams()
 
@@ -43,6 +44,9 @@ class FakeCell:
         source=ContactSource.ESTIMATED))
     reject_modes: tuple[int, ...] = ()
     never_answer: str = ''
+    #: Outcome of a slip trajectory per mode (default: "done" at the target after its
+    #: duration).
+    slip_outcomes: dict[int, str] = field(default_factory=dict)
     now: float = 0.0
     calls: list[tuple[float, str, Any]] = field(default_factory=list)
     recording: bool = False
@@ -59,6 +63,19 @@ class FakeCell:
         if request.mode in self.reject_modes:
             return CallResult(False, 'HOLD needs valid mu_c and r')
         return _Later(self, t + 0.005, CallResult(True))
+
+    def execute_slip(self, request: ModeRequest, t: float) -> Any:
+        self._rec(t, 'execute', SlipMode(request.mode))
+        if request.mode in self.reject_modes:
+            return CallResult(False, 'slip_control/execute: beyond the grasp')
+        target = request.distance if request.mode == SlipMode.LINEAR else abs(request.angle)
+        message = self.slip_outcomes.get(request.mode, 'done')
+        ok = message == 'done'
+        pos = target if ok else 0.25 * target
+        result = SlipResult(SlipMode(request.mode), ok, message, pos, target - pos,
+                            request.duration if ok else 0.5)
+        return _Later(self, t + (request.duration if ok else 0.5),
+                      CallResult(ok, message, value=result))
 
     def start_estimation(self, phase: EstimationPhase, duration: float, t: float) -> Any:
         self._rec(t, 'estimate', (phase, duration))
@@ -194,12 +211,14 @@ def test_slip_sequences_and_hinge() -> None:
                          recording_name='plastic_linear_t2_2cm_1')
     prog = _run(SequenceRunner(seq, cell, P, flags=CellFlags(holding=True)), cell)
     assert prog.success
-    req = next(s.args['request'] for s in seq.steps if s.action == Action.SET_SLIP_MODE)
+    req = next(s.args['request'] for s in seq.steps if s.action == Action.EXECUTE_SLIP)
     assert req.mode == SlipMode.LINEAR and req.distance == 0.02 and req.latch_direction
-    assert prog.elapsed >= 3.0
+    assert prog.elapsed >= 3.0                       # the 2 s trajectory, then 1 s settling
+    assert prog.segments == ('LINEAR slip: done: 20.0 of 20.0 mm in 2.00 s',)
+    assert prog.message == 'linear_slippage done (LINEAR slip: done: 20.0 of 20.0 mm in 2.00 s)'
     # Rotation, like the slide, goes the way gravity turns the object: sign latched.
     seq = build_sequence('rotational_slippage', P, duration=2.0, angle=0.35)
-    req = next(s.args['request'] for s in seq.steps if s.action == Action.SET_SLIP_MODE)
+    req = next(s.args['request'] for s in seq.steps if s.action == Action.EXECUTE_SLIP)
     assert req.mode == SlipMode.ROTATIONAL and req.angle == 0.35 and req.latch_direction
     cell = FakeCell()
     seq = build_sequence('hinge_mode', P, recording_name='wood_hinge_mode_1')
@@ -221,10 +240,99 @@ def test_demo_runs_every_stage_in_order() -> None:
     assert prog.success, prog.message
     names = cell.names()
     assert names.index('joints') < names.index('pickup') < names.index('record')
-    modes = [c[2] for c in cell.calls if c[1] == 'mode']
+    modes = [c[2] for c in cell.calls if c[1] in ('mode', 'execute')]
     assert modes == [SlipMode.OFF, SlipMode.HOLD, SlipMode.OFF, SlipMode.HOLD,
                      SlipMode.LINEAR, SlipMode.HINGE, SlipMode.HOLD, SlipMode.ROTATIONAL]
+    assert [c[2] for c in cell.calls if c[1] == 'execute'] == [SlipMode.LINEAR,
+                                                               SlipMode.ROTATIONAL]
     assert not cell.recording
+    assert len(prog.segments) == 2 and all(': done: ' in line for line in prog.segments)
+
+
+def test_a_failed_slip_segment_fails_the_demo_but_every_segment_reports() -> None:
+    """Issue 16: a slip that ends "velocity stale" is not a success. The demo goes on (the
+    rotational segment still runs and reports) and ends with success = False naming it."""
+    cell = FakeCell(props=_valid_props(), slip_outcomes={int(SlipMode.LINEAR): 'velocity stale'})
+    prog = _run(SequenceRunner(build_sequence('demo', P, recording_name='demo_x'), cell, P),
+                cell, t_max=400.0, dt=0.01)
+    assert prog.finished and not prog.success and prog.phase == 'failed'
+    assert [c[2] for c in cell.calls if c[1] == 'execute'] == [SlipMode.LINEAR,
+                                                               SlipMode.ROTATIONAL]
+    assert prog.segments == ('LINEAR slip: velocity stale: 5.0 of 20.0 mm in 0.50 s',
+                             'ROTATIONAL slip: done: 20.0 of 20.0 deg in 2.00 s')
+    assert prog.message == ("demo: 1 of 2 slip segment(s) failed: 'LINEAR slip': velocity "
+                            'stale: 5.0 of 20.0 mm in 0.50 s')
+    assert 'LINEAR slip: FAILED: velocity stale: 5.0 of 20.0 mm in 0.50 s' in prog.log
+    assert not cell.recording
+    # A refused trajectory is a failed segment too.
+    cell = FakeCell(reject_modes=(int(SlipMode.ROTATIONAL),))
+    seq = build_sequence('rotational_slippage', P, duration=2.0, angle=3.0)
+    prog = _run(SequenceRunner(seq, cell, P, flags=CellFlags(holding=True)), cell)
+    assert not prog.success and 'beyond the grasp' in prog.message
+
+
+def test_a_lost_object_stops_the_sequence_and_asks_for_a_re_grasp() -> None:
+    """Issue 16: "contact lost" (the slip controller's drop detection, the one hardware has)
+    marks the object lost; later goals that need it are refused naming the re-grasp steps
+    instead of wedging, and ``go_to_object`` (scene reset in the simulator) puts it back."""
+    from slip_control.core.sequence_runner import preflight
+    cell = FakeCell(props=_valid_props(), slip_outcomes={int(SlipMode.LINEAR): 'contact lost'})
+    runner = SequenceRunner(build_sequence('demo', P, recording_name='demo_x'), cell, P)
+    prog = _run(runner, cell, t_max=400.0, dt=0.01)
+    assert not prog.success
+    assert "step 'LINEAR slip' failed: contact lost" in prog.message
+    assert prog.object_lost.startswith("during 'LINEAR slip': contact lost")
+    assert [c[2] for c in cell.calls if c[1] == 'execute'] == [SlipMode.LINEAR]  # stopped
+    assert not cell.recording                                     # cleanup still ran
+    flags = runner.flags
+    assert flags.object_dropped and not flags.holding and not flags.at_pickup
+    refusal = preflight(build_sequence('hold_mode', P, duration=1.0), flags)
+    assert "holding (is False); run 'grasp' or 'pick_up_object' first" in refusal
+    assert "re-grasp it with 'release', then 'go_to_object', then 'grasp'" in refusal
+    assert "object_dropped (is True); run 'go_to_object' first" in \
+        preflight(build_sequence('grasp', P), flags)
+    # The demo puts it back by itself: release, then go to the object (scene reset), ...
+    cell = FakeCell(props=_valid_props())
+    runner = SequenceRunner(build_sequence('demo', P), cell, P, flags=flags)
+    prog = _run(runner, cell, t_max=400.0, dt=0.01)
+    assert prog.success, prog.message
+    names = cell.names()
+    assert names.index('force') < names.index('pickup') < names.index('execute')
+    assert not runner.flags.object_dropped
+
+
+def test_the_node_reports_a_drop_and_a_deliberate_release_is_none() -> None:
+    """`lose_object` (the node's sim/state drop check) while holding; a second demo starting
+    with the object lifted clears ``holding`` before it opens the gripper (so the fall is not
+    a fault) and goes back to the object."""
+    cell = FakeCell(props=_valid_props())
+    runner = SequenceRunner(build_sequence('hold_mode', P, duration=10.0), cell, P,
+                            flags=CellFlags(holding=True, at_hinge=True))
+    t = 0.0
+    while t < 1.0:
+        cell.now = t
+        runner.poll(t)
+        t += 0.01
+    runner.lose_object('the object was dropped (sim/state.object_dropped)', t)
+    prog = _run(runner, cell)
+    assert not prog.success and 'aborted during' in prog.message
+    assert prog.object_lost == ("during 'hold': the object was dropped "
+                                '(sim/state.object_dropped)')
+    assert runner.flags.object_dropped and not runner.flags.holding
+    assert not runner.flags.at_hinge
+    # After a full demo the object is lifted and held; the next demo lets go first.
+    seq = build_sequence('demo', P)
+    lifted = CellFlags(holding=True, joints_reset=True, contact_estimated=True)
+    cell = FakeCell(props=_valid_props())
+    runner = SequenceRunner(seq, cell, P, flags=lifted)
+    seen: list[tuple[str, bool]] = []
+    t = 0.0
+    while not runner.poll(t).finished:
+        seen.append((runner.progress().phase, runner.flags.holding))
+        cell.now = t = t + 0.01
+    assert runner.progress().success
+    assert ('release: wait', False) in seen                       # open, not holding
+    assert cell.names().index('pickup') < cell.names().index('execute')
 
 
 def test_bad_runner_requests() -> None:
@@ -239,20 +347,24 @@ def test_bad_runner_requests() -> None:
         assert all(s.timeout > 0.0 for s in seq.steps)
 
 
-def test_force_tracking_profile_and_playback() -> None:
-    f = force_tracking_profile([0.5, 1.5, 7.5, 12.5, 13.5, 14.0, 14.0 + 1 / 4, 60.0])
-    assert f == pytest.approx([5.0, 10.0, 25.0, 5.0, 5.0, 10.0, 15.0, 5.0])
-    t = np.arange(14.0, 49.0, 0.002)
-    v = force_tracking_profile(t)
-    assert v.min() >= 5.0 - 1e-9 and v.max() <= 15.0 + 1e-9
-    assert pytest.approx(49.0) == FORCE_PROFILE_DURATION
+def test_force_tracking_plays_the_one_profile() -> None:
+    """§5.4 through the runner: the profile of `slip_cell_common.core.force_profile` (the one
+    the driver's ``force_tracking_test`` tool plays), recorded from its first sample on."""
+    fp = ForceTrackingProfile()
+    assert fp.duration == pytest.approx(2 + 13 + 1 + 35 + 1)
     cell = FakeCell()
     seq = build_sequence('force_tracking_test', P, recording_name='sponge_1')
     prog = _run(SequenceRunner(seq, cell, P), cell, t_max=70.0, dt=0.002)
     assert prog.success
-    forces = [c[2] for c in cell.calls if c[1] == 'force']
-    assert forces[0] == 5.0 and forces[-1] == 0.0 and len(forces) > 20000
-    assert max(forces) == 25.0 and not cell.recording
+    calls = [c for c in cell.calls if c[1] in ('force', 'record', 'stop_record')]
+    assert calls[0][1:] == ('force', 5.0) and calls[1][1] == 'record'
+    assert calls[-2][1] == 'stop_record' and calls[-1][1:] == ('force', 0.0)
+    played = [(t, f) for t, name, f in calls[2:-2]]
+    t0 = played[0][0]
+    assert played[-1][0] - t0 == pytest.approx(fp.duration, abs=0.003)
+    t = np.array([p[0] for p in played]) - t0
+    assert np.array([p[1] for p in played]) == pytest.approx(fp.targets(t), abs=1e-9)
+    assert max(f for _, f in played) == 25.0 and not cell.recording
 
 
 class _Abandoned:
@@ -312,3 +424,36 @@ def test_fast_poll_only_during_the_force_profile() -> None:
         cell.now = t = t + 0.01
     assert ('force test: profile', True) in seen
     assert all(not fast for phase, fast in seen if phase != 'force test: profile')
+
+
+def test_est_contact_then_pick_up_object_leaves_the_cell_ready_for_slip_modes() -> None:
+    """Issue 18: after estimation and pick-up the cell holds the object (no extra `grasp`)."""
+    from slip_control.core.sequence_runner import preflight
+    cell = FakeCell(props=_valid_props())
+    flags = CellFlags(at_pickup=True, joints_reset=True, gripper_open=True)
+    for mode in ('est_contact', 'pick_up_object'):
+        assert preflight(build_sequence(mode, P), flags) == ''
+        runner = SequenceRunner(build_sequence(mode, P), cell, P, flags=flags)
+        prog = _run(runner, cell)
+        assert prog.success, prog.message
+        flags = runner.flags
+    assert flags.holding and not flags.gripper_open and not flags.at_pickup
+    # pick_up_object closed on the object (grasp force), turned HOLD on, then lifted.
+    tail = cell.calls[[c[1] for c in cell.calls].index('read') + 1:]
+    assert [c[1] for c in tail if c[1] in ('force', 'mode', 'move')][-3:] == \
+        ['force', 'mode', 'move']
+    assert [c[2] for c in tail if c[1] == 'mode'][-1] == SlipMode.HOLD
+    assert [c[2] for c in tail if c[1] == 'force'][-1] == P.grasp.force
+    assert tail[-1][2][0] == pytest.approx(P.hold_height)
+    slip = build_sequence('linear_slippage', P, duration=2.0, distance=0.02)
+    assert preflight(slip, flags) == ''
+    # Without the pick-up, the refusal names the missing step.
+    refusal = preflight(slip, CellFlags(contact_estimated=True))
+    assert "precondition not met: holding (is False); run 'grasp' or 'pick_up_object' first" \
+        in refusal
+    # Already holding (the old est_contact, grasp, pick_up_object order): no second grasp.
+    cell = FakeCell(props=_valid_props())
+    runner = SequenceRunner(build_sequence('pick_up_object', P), cell, P,
+                            flags=CellFlags(contact_estimated=True, joints_reset=True,
+                                            holding=True))
+    assert _run(runner, cell).success and 'force' not in cell.names()

@@ -15,6 +15,7 @@ import pytest
 from slip_control.core.contact import ContactSource
 from slip_control.core.signals import SensorSnapshot
 from slip_control.core.trajectory import TrapezoidalTrajectory
+from slip_cell_common.time_conv import stamp_to_seconds
 
 pytestmark = pytest.mark.ros
 
@@ -22,7 +23,7 @@ T0 = 50.0
 DT = 1.0 / 120.0
 
 
-def _controller(harness, **params):  # noqa: ANN001, ANN202
+def _controller(harness, **params):
     from rclpy.parameter import Parameter
     from slip_control.slip_controller_node import SlipControllerNode
     overrides = [Parameter('use_sim_time', value=True)]
@@ -33,7 +34,7 @@ def _controller(harness, **params):  # noqa: ANN001, ANN202
     return node
 
 
-def _outputs(harness):  # noqa: ANN001, ANN202
+def _outputs(harness):
     from slip_cell_common.qos import LATCHED
     from slip_msgs.msg import GraspForceCommand, SlipControllerState, SlipTracking
     return (harness.collect(GraspForceCommand, 'gripper/grasp_force_cmd'),
@@ -41,7 +42,7 @@ def _outputs(harness):  # noqa: ANN001, ANN202
             harness.collect(SlipTracking, 'slip_control/tracking'))
 
 
-def _set_mode(harness, mode: int, **kw):  # noqa: ANN001, ANN202
+def _set_mode(harness, mode: int, **kw):
     from slip_msgs.srv import SetSlipMode
     req = SetSlipMode.Request(mode=mode, duration=kw.get('duration', 0.0),
                               distance=kw.get('distance', 0.0), angle=kw.get('angle', 0.0),
@@ -73,7 +74,7 @@ def _hold_still(snap: Callable[..., SensorSnapshot], t0: float,
             for i in range(1, int(round(seconds / DT)) + 1)]
 
 
-def _send_goal(harness, mode: int, feedback: list, **kw):  # noqa: ANN001, ANN202
+def _send_goal(harness, mode: int, feedback: list, **kw):
     from slip_msgs.action import ExecuteSlip
     client = harness.action_client(ExecuteSlip, 'slip_control/execute')
     assert harness.spin_until(client.server_is_ready, 10.0)
@@ -88,7 +89,7 @@ def _send_goal(harness, mode: int, feedback: list, **kw):  # noqa: ANN001, ANN20
     return handle, handle.get_result_async()
 
 
-def test_set_mode_rejects_bad_arguments_with_messages(harness, make_props) -> None:  # noqa
+def test_set_mode_rejects_bad_arguments_with_messages(harness, make_props) -> None:
     from slip_msgs.srv import SetSlipMode as M
     node = _controller(harness)
     cmds, states, _ = _outputs(harness)
@@ -98,7 +99,7 @@ def test_set_mode_rejects_bad_arguments_with_messages(harness, make_props) -> No
     res = _set_mode(harness, M.Request.HOLD)
     assert not res.success and 'no contact properties received' in res.message
     harness.publish_properties(make_props(source=ContactSource.DEFAULT))
-    assert harness.spin_until(lambda: node._props is not None)  # noqa: SLF001
+    assert harness.spin_until(lambda: node.host.properties is not None)
     res = _set_mode(harness, M.Request.LINEAR, duration=2.0, distance=0.02)
     assert not res.success and 'DEFAULT (placeholder)' in res.message
 
@@ -124,16 +125,16 @@ def test_set_mode_rejects_bad_arguments_with_messages(harness, make_props) -> No
 
     # Only mu_c valid: LINEAR and HINGE allowed, HOLD and ROTATIONAL refused.
     harness.publish_properties(make_props(rotational_valid=False))
-    assert harness.spin_until(lambda: node._props is not None  # noqa: SLF001
-                              and not node._props.finger_1.rotational_valid)  # noqa: SLF001
+    assert harness.spin_until(lambda: node.host.properties is not None
+                              and not node.host.properties.finger_1.rotational_valid)
     res = _set_mode(harness, M.Request.ROTATIONAL, duration=2.0, angle=0.3)
     assert not res.success and 'finger 1 r' in res.message
     res = _set_mode(harness, M.Request.HINGE)
     assert res.success, res.message
 
 
-def test_hold_commands_carry_sim_stamps_timeout_and_source(harness, make_props,  # noqa
-                                                           snap) -> None:  # noqa: ANN001
+def test_hold_commands_carry_sim_stamps_timeout_and_source(harness, make_props,
+                                                           snap) -> None:
     from slip_msgs.msg import GraspForceCommand
     from slip_msgs.srv import SetSlipMode as M
     node = _controller(harness)
@@ -145,7 +146,7 @@ def test_hold_commands_carry_sim_stamps_timeout_and_source(harness, make_props, 
     data = _hold_still(snap, T0, 0.25)
     harness.play(data, node)
     assert harness.spin_until(lambda: len(cmds) >= len(data) - 2)
-    stamps = np.array([c.header.stamp.sec + c.header.stamp.nanosec * 1e-9 for c in cmds])
+    stamps = np.array([stamp_to_seconds(c.header.stamp) for c in cmds])
     assert np.all((stamps >= T0) & (stamps <= data[-1].twist_1.stamp + 0.011))  # sim time
     assert all(c.timeout == pytest.approx(0.1) for c in cmds)
     assert all(c.source == GraspForceCommand.SOURCE_SLIP_CONTROLLER for c in cmds)
@@ -158,13 +159,14 @@ def test_hold_commands_carry_sim_stamps_timeout_and_source(harness, make_props, 
     from rcl_interfaces.srv import SetParameters
     from rclpy.parameter import Parameter
 
-    def set_param(name: str, value: float):  # noqa: ANN202
+    def set_param(name: str, value: float):
         req = SetParameters.Request(parameters=[Parameter(name, value=value).to_parameter_msg()])
         res = harness.call(SetParameters, 'slip_controller/set_parameters', req)
         assert res is not None
         return res.results[0]
     bad = set_param('hold.margin', 50.0)
-    assert not bad.successful and 'hold.margin = 50.0 above 10.0' in bad.reason
+    assert not bad.successful and 'hold.margin out of range' in bad.reason  # descriptor range
+    assert 'Max: 10.0' in bad.reason
     assert set_param('hold.margin', 3.0).successful
     n = len(cmds)
     harness.play(_hold_still(snap, harness.t, 0.1), node)
@@ -173,7 +175,7 @@ def test_hold_commands_carry_sim_stamps_timeout_and_source(harness, make_props, 
     assert node.controller.params.hold.margin == 3.0
 
 
-def test_linear_goal_finishes_then_holds(harness, make_props, snap) -> None:  # noqa: ANN001
+def test_linear_goal_finishes_then_holds(harness, make_props, snap) -> None:
     from action_msgs.msg import GoalStatus
     from slip_msgs.srv import SetSlipMode as M
     node = _controller(harness)
@@ -199,8 +201,8 @@ def test_linear_goal_finishes_then_holds(harness, make_props, snap) -> None:  # 
     assert harness.spin_until(lambda: len(cmds) > n + 5)
 
 
-def test_mode_switch_and_new_goal_preempt_running_goal(harness, make_props,  # noqa
-                                                       snap) -> None:  # noqa: ANN001
+def test_mode_switch_and_new_goal_preempt_running_goal(harness, make_props,
+                                                       snap) -> None:
     from action_msgs.msg import GoalStatus
     from slip_msgs.srv import SetSlipMode as M
     node = _controller(harness)
@@ -230,7 +232,7 @@ def test_mode_switch_and_new_goal_preempt_running_goal(harness, make_props,  # n
     assert not states[-1].goal_active
 
 
-def test_cancel_and_wrong_goal_mode(harness, make_props, snap) -> None:  # noqa: ANN001
+def test_cancel_and_wrong_goal_mode(harness, make_props, snap) -> None:
     from action_msgs.msg import GoalStatus
     from slip_msgs.srv import SetSlipMode as M
     node = _controller(harness)
@@ -253,7 +255,7 @@ def test_cancel_and_wrong_goal_mode(harness, make_props, snap) -> None:  # noqa:
 
 
 @pytest.mark.parametrize('stream', ['velocity', 'ft'])
-def test_stream_stops_mid_slip_safe_hold_within_100ms(harness, make_props, snap,  # noqa
+def test_stream_stops_mid_slip_safe_hold_within_100ms(harness, make_props, snap,
                                                       stream: str) -> None:
     from action_msgs.msg import GoalStatus
     from slip_msgs.srv import SetSlipMode as M
@@ -279,8 +281,8 @@ def test_stream_stops_mid_slip_safe_hold_within_100ms(harness, make_props, snap,
         elif i % 4 == 0:
             harness.deliver(s, node, wrenches=False)
 
-    def stamp(m) -> float:  # noqa: ANN001
-        return m.header.stamp.sec + m.header.stamp.nanosec * 1e-9
+    def stamp(m) -> float:
+        return stamp_to_seconds(m.header.stamp)
     held = [s for s in states if s.safe_hold]
     assert held, [(stamp(s), s.reason) for s in states]
     assert 0.0 < stamp(held[0]) - t_stop <= 0.1
@@ -298,7 +300,7 @@ def test_stream_stops_mid_slip_safe_hold_within_100ms(harness, make_props, snap,
 
 @pytest.mark.parametrize('stale_confirm', [0.5, 0.0])
 def test_clock_ahead_of_queued_samples_is_a_backlog_not_a_stopped_stream(
-        harness, make_props, snap, stale_confirm: float) -> None:  # noqa: ANN001
+        harness, make_props, snap, stale_confirm: float) -> None:
     """The node's clock jumps 83 ms ahead of the samples queued with it (a busy executor).
 
     With the stale verdict confirmed (``stale_confirm`` > 0) the queued samples arrive, the

@@ -2,9 +2,10 @@
 """``force_tracking_test``: play the force-tracking profile and analyse the recording.
 
 ``force_tracking_test run`` publishes the profile of control_and_estimation §5.4
-(`core.force_tracking.ForceTrackingProfile`: 5 N, the square wave, the 1–64 Hz sines, 5 N,
-then 0 N) on ``gripper/grasp_force_cmd`` at 500 Hz with ``SOURCE_TEST``, records the command,
-``gripper/motor_command``, ``gripper/status`` and ``finger_1/ft/wrench`` to a bag
+(`slip_cell_common.core.force_profile.ForceTrackingProfile`, the one profile, which the
+experiment runner's ``force_tracking_test`` mode plays too: 5 N, the square wave, the 1–64 Hz
+sines, 5 N, then 0 N) on ``gripper/grasp_force_cmd`` at 500 Hz with ``SOURCE_TEST``, records
+the command, ``gripper/motor_command``, ``gripper/status`` and ``finger_1/ft/wrench`` to a bag
 (`common.recorder.TopicRecorder`) and prints rise time, overshoot, settling time and the −3 dB
 bandwidth (§6.1, §6.2). ``force_tracking_test analyze BAG`` prints the same report from a bag.
 
@@ -22,18 +23,23 @@ import math
 import sys
 import time
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
+from collections.abc import Sequence
 
 import numpy as np
 
 from slip_cell_common.bag_io import BagError, read_messages, stamp_s
-from slip_gripper_driver.core.force_tracking import (ForceTrackingProfile, ForceTrackingReport,
-                                                     analyze, format_report)
+from slip_cell_common.core import names
+from slip_cell_common.core.cli_args import (Parser, finite_float, non_negative_float,
+                                            plain_doc, positive_float)
+from slip_cell_common.time_conv import clock_seconds
+from slip_cell_common.core.force_profile import ForceTrackingProfile
+from slip_gripper_driver.core.force_tracking import ForceTrackingReport, analyze, format_report
 
-COMMAND_TOPIC = 'gripper/grasp_force_cmd'
-MOTOR_TOPIC = 'gripper/motor_command'
-WRENCH_TOPIC = 'finger_1/ft/wrench'
-STATUS_TOPIC = 'gripper/status'
+COMMAND_TOPIC = names.GRASP_FORCE_CMD
+MOTOR_TOPIC = names.MOTOR_COMMAND
+WRENCH_TOPIC = names.ft_wrench(1)
+STATUS_TOPIC = names.GRIPPER_STATUS
 RECORDED = (COMMAND_TOPIC, MOTOR_TOPIC, WRENCH_TOPIC, STATUS_TOPIC)
 
 
@@ -100,11 +106,11 @@ def run_profile(node: Any, executor: Any, profile: ForceTrackingProfile, *,
     if recorder is not None:  # let the recorder discover and match the topics first
         spin_until(executor, lambda: len(recorder.topics) >= 3, 2.0)
     clock = node.get_clock()
-    t0 = clock.now().nanoseconds * 1e-9
+    t0 = clock_seconds(clock)
     state = {'done': False}
 
     def tick() -> None:
-        t = clock.now().nanoseconds * 1e-9
+        t = clock_seconds(clock)
         elapsed = t - t0
         if elapsed >= duration_s:
             force = profile.final_force
@@ -179,23 +185,33 @@ def main(argv: Sequence[str] | None = None) -> int:
     from rclpy.utilities import remove_ros_args
 
     full = list(sys.argv if argv is None else ['force_tracking_test', *argv])
-    parser = argparse.ArgumentParser(prog='force_tracking_test', description=__doc__.split(
-        '\n\n')[0].strip('`'))
-    sub = parser.add_subparsers(dest='command', required=True)
-    run = sub.add_parser('run', help='publish the profile, record and analyse')
-    run.add_argument('--bag', default='', help='bag directory to create '
-                     '(default bags/force_tracking_<time>)')
-    run.add_argument('--no-record', action='store_true', help='only publish the profile')
-    run.add_argument('--duration', type=float, default=0.0,
+    parser = Parser(prog='force_tracking_test', description=plain_doc(__doc__))
+    sub = parser.add_subparsers(dest='command', metavar='COMMAND', required=True,
+                                help='run the test or analyse a recording (COMMAND --help for '
+                                     'its options)')
+    run = sub.add_parser('run', help='publish the profile, record and analyse',
+                         description='Play the force-tracking profile on '
+                                     'gripper/grasp_force_cmd at 500 Hz, record, and print the '
+                                     'report. Extra --ros-args are passed to the node.')
+    run.add_argument('--bag', default='', metavar='DIR',
+                     help='bag directory to create (default: bags/force_tracking_<time>)')
+    run.add_argument('--no-record', action='store_true',
+                     help='only publish the profile (no bag, no report)')
+    run.add_argument('--duration', type=non_negative_float, default=0.0, metavar='S',
                      help='play only the first S seconds (0 = the whole profile)')
-    run.add_argument('--timeout', type=float, default=0.1,
-                     help='GraspForceCommand.timeout of each command [s]')
-    run.add_argument('--wait', type=float, default=10.0,
+    run.add_argument('--timeout', type=non_negative_float, default=0.1, metavar='S',
+                     help='GraspForceCommand.timeout of each command [s] (0 = valid until '
+                          'replaced)')
+    run.add_argument('--wait', type=positive_float, default=10.0, metavar='S',
                      help='longest wait for gripper_driver to subscribe [s]')
-    ana = sub.add_parser('analyze', help='analyse a recorded bag')
+    ana = sub.add_parser('analyze', help='analyse a recorded bag',
+                         description='Print rise time, t50, overshoot, settling time, the '
+                                     'frequency response and the -3 dB bandwidth of a recorded '
+                                     'run.')
     ana.add_argument('bag', help='bag directory')
-    ana.add_argument('--t0', type=float, default=None,
-                     help='profile start on the bag clock [s]; detected when omitted')
+    ana.add_argument('--t0', type=finite_float, default=None, metavar='S',
+                     help='profile start on the bag clock [s] (default: detected from the '
+                          'first rise of the command)')
     args = parser.parse_args(remove_ros_args(full)[1:])
     if args.command == 'analyze':
         return _report(args.bag, args.t0)

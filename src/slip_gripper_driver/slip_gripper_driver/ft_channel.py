@@ -3,25 +3,43 @@
 
 Shared by ``gripper_driver`` (two channels, embedded) and ``netft_driver`` (one channel).
 Samples arrive on the client's reader thread stamped with the node clock at datagram arrival;
-every accepted sample goes to the bias accumulator and to ``sink`` (the grasp-force loop), and
+every valid sample goes to the bias accumulator and to ``sink`` (the grasp-force loop), and
 every ``decimation``-th one is published (rclpy publishing is thread-safe). The biased topic
 carries only bias-removed wrenches: nothing is published on it before the first bias.
 
+Records that are not measurements (hardware_protocols §4.5) — an error in the status word
+(e.g. ``0x80020000``) or a value beyond the measuring range — are counted and reach neither
+the sink nor ``finger_k/ft/wrench``; with ``publish_on_error`` they still go to
+``finger_k/ft/raw``. After a box restart (§4.7) a bias that existed is reported lost and no
+sample reaches the sink until a new bias succeeds: the loop falls back as for stale F/T.
+
 `TopicFtInput` is the ``ft.mode: topic`` counterpart: ``finger_k/ft/wrench`` from a standalone
-``netft_driver`` feeds the loop instead of a UDP client.
+``netft_driver`` feeds the loop instead of a UDP client. The health travels as the *absence* of
+samples, not as a separate status topic: ``WrenchStamped`` has no status field, and a status
+topic would race with the wrench stream (a flagged wrench could be used before its flag
+arrives, or the flag could be lost), whereas a sample that is never published can never be
+used. The gripper driver's existing F/T staleness check therefore sees an erroring,
+out-of-range or unbiased box as stale and falls back safely; the reason is in the
+``netft_driver``'s diagnostics.
 """
 from __future__ import annotations
 
 import math
 import threading
 import time
-from typing import Any, Callable, Sequence
+from dataclasses import dataclass
+from typing import Any
+from collections.abc import Callable, Sequence
 
-from slip_gripper_driver import ros_conv
+from slip_gripper_driver import gripper_msgs_conv
 from slip_cell_common.core.monitors import AgeMonitor, FrequencyMonitor, Level, Report
-from slip_gripper_driver.core.netft import (BiasAccumulator, BiasParams, BiasState, FtParams,
-                                            FtSample, NetFTClient, NetFTError, NetFTStats,
-                                            fetch_netft_config)
+from slip_gripper_driver.core.ft_bias import (BIAS_TIMEOUT_S, BiasAccumulator, BiasParams,
+                                              BiasState, bias_outcome)
+from slip_gripper_driver.core.ft_validity import (UNCHECKED, RangeLimits, RecordFlaw,
+                                                  merge_limits, record_flaw)
+from slip_gripper_driver.core.netft_client import FtSample, NetFTClient, NetFTError, NetFTStats
+from slip_gripper_driver.core.netft_config import fetch_netft_config
+from slip_gripper_driver.core.netft_params import FtStartParams, FtStreamParams
 
 #: ``sink(finger, stamp [s], bias-removed wrench or None)`` — None while unbiased.
 Sink = Callable[[int, float, 'Sequence[float] | None'], None]
@@ -31,14 +49,35 @@ Clock = Callable[[], float]
 
 #: Stream supervision / bias timeout timer period of both drivers [s].
 FT_SUPERVISE_PERIOD_S = 0.05
-#: Extra time for the bias window to close after ``bias.duration`` [s].
-BIAS_TIMEOUT_S = 0.5
+#: Bias message after a box restart (diagnostics and the bias services say this).
+BIAS_LOST = 'bias lost after device restart'
+
+
+@dataclass(frozen=True)
+class FtHealth:
+    """Validity counters of one channel (for diagnostics).
+
+    Attributes:
+        status_errors: Records dropped for an error in the status word.
+        out_of_range: Records dropped for a value beyond ``limits``.
+        last_flaw: Flaw of the newest record (NONE when it was a measurement).
+        bias_lost: A bias existed and the box restarted since; no sample reaches the loop.
+        device_restarts: Box restarts seen.
+        limits: Measuring range in use [N, N·m] (0 = axis unchecked).
+    """
+
+    status_errors: int = 0
+    out_of_range: int = 0
+    last_flaw: RecordFlaw = RecordFlaw.NONE
+    bias_lost: bool = False
+    device_restarts: int = 0
+    limits: RangeLimits = UNCHECKED
 
 
 def wrench_publisher(pub: Any, frame_id: str) -> Publish:
     """A `Publish` function for ``pub`` (``geometry_msgs/WrenchStamped`` in ``frame_id``)."""
     def publish(stamp: float, wrench: Sequence[float]) -> None:
-        pub.publish(ros_conv.wrench_msg(stamp, frame_id, wrench))
+        pub.publish(gripper_msgs_conv.wrench_msg(stamp, frame_id, wrench))
     return publish
 
 
@@ -48,8 +87,12 @@ class FtChannel:
     Args:
         finger: 1 or 2.
         address: Box IP.
-        ft: Scale/rate/publishing settings (``read_config`` decides where the scale comes from).
+        stream: Scale/rate/range/publishing settings (``read_config`` decides where the scale
+            and the measuring range come from).
         bias: Bias settings.
+        port: RDT UDP port of this box (0 = ``stream.port``).
+        http_port: HTTP port of its ``netftapi2.xml`` (0 = ``stream.http_port``).
+        start: Stream start retries and wait.
         clock: Node clock [s].
         sink: Receives every accepted sample (bias-removed or None).
         restart_initial_s: First stream-restart delay [s].
@@ -57,17 +100,20 @@ class FtChannel:
         thread_setup: Called first on the client's reader thread (`realtime.ThreadTuning`).
     """
 
-    def __init__(self, finger: int, address: str, ft: FtParams, bias: BiasParams, *,
+    def __init__(self, finger: int, address: str, stream: FtStreamParams, bias: BiasParams, *,
+                 port: int = 0, http_port: int = 0, start: FtStartParams = FtStartParams(),
                  clock: Clock, sink: Sink | None = None, restart_initial_s: float = 0.5,
                  restart_max_s: float = 5.0,
                  thread_setup: Callable[[], object] | None = None) -> None:
         self.finger = finger
         self._thread_setup = thread_setup
         self.address = address
-        self.port = ft.port
+        self.port = port or stream.port
+        self.http_port = http_port or stream.http_port
         self._clock = clock
         self._sink = sink
-        self._ft = ft
+        self._stream = stream
+        self._start = start
         self._restart = (restart_initial_s, restart_max_s)
         self.bias_params = bias
         self.accumulator = bias.accumulator(BIAS_TIMEOUT_S)
@@ -75,10 +121,17 @@ class FtChannel:
         self.publish_wrench: Publish | None = None
         self.publish_raw: Publish | None = None
         self.publishing = False
-        self.decimation = ft.publish_decimation
-        self.raw_enabled = ft.publish_raw
+        self.decimation = stream.publish_decimation
+        self.raw_enabled = stream.publish_raw
+        self.publish_on_error = stream.publish_on_error
+        self.limits: RangeLimits = merge_limits(stream.measuring_range.limits(), None)
         self._count = 0
         self._bias_done = threading.Event()
+        self._status_errors = 0
+        self._out_of_range = 0
+        self._last_flaw = RecordFlaw.NONE
+        self._bias_lost = False
+        self._device_restarts = 0
 
     @property
     def name(self) -> str:
@@ -91,14 +144,19 @@ class FtChannel:
         Raises:
             NetFTError: The box cannot be read or sends no data (the message names it).
         """
-        ft = self._ft
-        if ft.read_config:
-            scale = fetch_netft_config(self.address).scale
+        stream = self._stream
+        if stream.read_config:
+            config = fetch_netft_config(self.address, http_port=self.http_port)
+            scale = config.scale
+            self.limits = merge_limits(stream.measuring_range.limits(), config.measuring_range)
         else:
-            scale = ft.scale()
+            scale = stream.scale()
+            self.limits = merge_limits(stream.measuring_range.limits(), None)
         self.client = NetFTClient(
-            self.address, scale=scale, clock=self._clock, on_sample=self._on_sample,
-            port=ft.port, start_retries=ft.start_retries, start_wait_s=ft.start_wait,
+            self.address, scale=scale, clock=self._clock, on_sample=self.on_sample,
+            port=self.port, start_retries=self._start.start_retries,
+            start_wait_s=self._start.start_wait, restart_after_s=stream.restart_after,
+            expected_rate_hz=stream.expected_rate,
             restart_initial_s=self._restart[0], restart_max_s=self._restart[1],
             thread_setup=self._thread_setup)
         try:
@@ -123,12 +181,13 @@ class FtChannel:
         if self.accumulator.poll(now) != BiasState.COLLECTING:
             self._bias_done.set()
 
-    def apply(self, ft: FtParams, bias: BiasParams) -> None:
-        """Adopt run-time changes (decimation, raw publishing, rates, bias settings)."""
-        self._ft = ft
+    def apply(self, stream: FtStreamParams, bias: BiasParams) -> None:
+        """Adopt run-time changes (decimation, raw and error publishing, rates, bias)."""
+        self._stream = stream
         self.bias_params = bias
-        self.decimation = ft.publish_decimation
-        self.raw_enabled = ft.publish_raw
+        self.decimation = stream.publish_decimation
+        self.raw_enabled = stream.publish_raw
+        self.publish_on_error = stream.publish_on_error
 
     # ------------------------------------------------------------------ bias
     def sample_age(self, now: float) -> float:
@@ -163,21 +222,62 @@ class FtChannel:
         """Valid offsets exist."""
         return self.accumulator.biased
 
+    @property
+    def bias_lost(self) -> bool:
+        """The box restarted after a bias; nothing reaches the loop until a new bias."""
+        return self._bias_lost
+
+    def health(self) -> FtHealth:
+        """Validity counters (diagnostics)."""
+        return FtHealth(self._status_errors, self._out_of_range, self._last_flaw,
+                        self._bias_lost, self._device_restarts, self.limits)
+
     # ------------------------------------------------------------------ samples
-    def _on_sample(self, sample: FtSample) -> None:
+    def on_sample(self, sample: FtSample) -> None:
+        """One accepted record (the client's reader thread): validity, bias path, loop sink,
+        publishing."""
+        if sample.device_restart:
+            self._on_device_restart()
+        flaw = record_flaw(sample.status, sample.wrench, self.limits)
+        self._last_flaw = flaw
+        self._count += 1
+        publish = self.publishing and self._count % self.decimation == 0
+        if flaw != RecordFlaw.NONE:
+            # Not a measurement: never averaged into a bias, never fed to the loop, never on
+            # finger_k/ft/wrench (topic mode would feed it to the loop).
+            if flaw == RecordFlaw.STATUS_ERROR:
+                self._status_errors += 1
+            else:
+                self._out_of_range += 1
+            if publish and self.publish_on_error and self.raw_enabled and \
+                    self.publish_raw is not None:
+                self.publish_raw(sample.stamp, sample.wrench)
+            return
         acc = self.accumulator
         biased = acc.add(sample.stamp, sample.wrench)
         if acc.state != BiasState.COLLECTING and not self._bias_done.is_set():
             self._bias_done.set()
-        if self._sink is not None:
+        if self._bias_lost and acc.biased:
+            self._bias_lost = False  # a new bias succeeded after the restart
+        if self._sink is not None and not self._bias_lost:
             self._sink(self.finger, sample.stamp, biased)
-        self._count += 1
-        if not self.publishing or self._count % self.decimation:
+        if not publish:
             return
         if biased is not None and self.publish_wrench is not None:
             self.publish_wrench(sample.stamp, biased)
         if self.raw_enabled and self.publish_raw is not None:
             self.publish_raw(sample.stamp, sample.wrench)
+
+    def _on_device_restart(self) -> None:
+        """The box restarted: its device bias is gone (and a host bias was taken on top of
+        whatever the box subtracted), so a bias that existed — or was being taken — is lost.
+        Re-biasing needs unloaded pads, which this channel cannot know: it reports instead."""
+        self._device_restarts += 1
+        acc = self.accumulator
+        if acc.biased or acc.state == BiasState.COLLECTING:
+            self._bias_lost = True
+            acc.clear(BIAS_LOST)
+            self._bias_done.set()
 
     # ------------------------------------------------------------------ diagnostics
     def stats(self, now: float) -> NetFTStats | None:
@@ -189,12 +289,13 @@ class FtChannel:
         s = self.stats(now)
         if s is None:
             return Report(Level.STALE, f'{self.name}: not open')
-        return ft_report(s, now, self._ft.expected_rate, self._ft.rate_tolerance,
-                         stale_after_s, self.accumulator)
+        return ft_report(s, now, self._stream.expected_rate, self._stream.rate_tolerance,
+                         stale_after_s, self.accumulator, self.health())
 
 
 def ft_report(s: NetFTStats, now: float, expected_hz: float, tolerance: float,
-              stale_after_s: float, acc: BiasAccumulator) -> Report:
+              stale_after_s: float, acc: BiasAccumulator,
+              health: FtHealth = FtHealth()) -> Report:
     """ROS-free diagnostic report of one box (levels per ros_interfaces §8)."""
     age = now - s.last_stamp if math.isfinite(s.last_stamp) else math.inf
     values = (
@@ -204,6 +305,10 @@ def ft_report(s: NetFTStats, now: float, expected_hz: float, tolerance: float,
         ('duplicates', str(s.duplicates)), ('out_of_order', str(s.out_of_order)),
         ('bad_datagrams', str(s.bad_datagrams)), ('ft_stalls', str(s.ft_stalls)),
         ('ft_restarts', str(s.ft_restarts)), ('stream_restarts', str(s.restarts)),
+        ('new_streams', str(s.new_streams)), ('bias_restarts', str(s.bias_restarts)),
+        ('device_restarts', str(health.device_restarts)),
+        ('status_errors', str(health.status_errors)), ('out_of_range', str(health.out_of_range)),
+        ('measuring_range', ' '.join(f'{v:g}' for v in health.limits)),
         ('socket_errors', str(s.socket_errors)), ('status', f'0x{s.status:08X}'),
         ('status_text', s.status_text), ('latched_status', f'0x{s.latched_status:08X}'),
         ('biased', str(acc.biased).lower()), ('bias', acc.message),
@@ -212,8 +317,14 @@ def ft_report(s: NetFTStats, now: float, expected_hz: float, tolerance: float,
         return Report(Level.ERROR, f'{s.address}: no data', values)
     if age > stale_after_s:
         return Report(Level.ERROR, f'{s.address}: no data for {age:.3f} s', values)
+    if health.bias_lost:
+        return Report(Level.ERROR, f'{s.address}: {BIAS_LOST}; F/T withheld from the loop '
+                      'until biased again (pads unloaded)', values)
     if s.status_level == Level.ERROR:
-        return Report(Level.ERROR, f'{s.address}: {s.status_text}', values)
+        return Report(Level.ERROR, f'{s.address}: {s.status_text}; records dropped', values)
+    if health.last_flaw == RecordFlaw.OUT_OF_RANGE:
+        return Report(Level.ERROR, f'{s.address}: beyond the measuring range; records dropped',
+                      values)
     problems = []
     if abs(s.rate_hz - expected_hz) > tolerance * expected_hz:
         problems.append(f'rate {s.rate_hz:.0f} Hz outside {expected_hz:.0f} Hz '
@@ -221,7 +332,8 @@ def ft_report(s: NetFTStats, now: float, expected_hz: float, tolerance: float,
     if s.status_level == Level.WARN:
         problems.append(s.status_text)
     if not acc.biased:
-        problems.append('not biased')
+        # The bias-removed wrench topic publishes nothing until then: say so where users look.
+        problems.append('not biased: the wrench topic stays silent until gripper/bias_ft')
     if problems:
         return Report(Level.WARN, f'{s.address}: ' + '; '.join(problems), values)
     return Report(Level.OK, f'{s.address}: streaming, biased', values)
@@ -231,7 +343,8 @@ def run_bias(channels: Sequence[FtChannel], now: Clock,
              fresh_within_s: float) -> tuple[bool, str]:
     """Bias every channel over one window and wait for the result (blocks ≤ duration + 0.6 s).
 
-    Fails at once unless every box has produced a sample within ``fresh_within_s`` [s].
+    Fails at once unless every box has produced a sample within ``fresh_within_s`` [s] and
+    its newest record is a valid measurement (no error status, within the measuring range).
 
     Returns:
         ``(success, message)``; the message names each box.
@@ -240,6 +353,10 @@ def run_bias(channels: Sequence[FtChannel], now: Clock,
     silent = [c.name for c in channels if c.sample_age(t) > fresh_within_s]
     if silent:
         return False, f'no recent F/T data from {", ".join(silent)}; bias refused'
+    flawed = [f'{c.name} ({c.health().last_flaw.name.lower().replace("_", " ")})'
+              for c in channels if c.health().last_flaw != RecordFlaw.NONE]
+    if flawed:
+        return False, f'F/T records not valid from {", ".join(flawed)}; bias refused'
     for channel in channels:
         channel.start_bias(t)
     deadline = time.monotonic() + max(c.bias_params.duration for c in channels) + \
@@ -248,8 +365,7 @@ def run_bias(channels: Sequence[FtChannel], now: Clock,
         if not channel.wait_bias(max(0.0, deadline - time.monotonic())):
             # The window never closed (samples stopped): end it now with what it collected.
             channel.accumulator.poll(math.inf)
-    ok = all(c.accumulator.state == BiasState.DONE for c in channels)
-    return ok, '; '.join(f'{c.name}: {c.accumulator.message}' for c in channels)
+    return bias_outcome([(c.name, c.accumulator) for c in channels])
 
 
 class TopicFtInput:
@@ -289,5 +405,9 @@ class TopicFtInput:
         values = (('topic', self.topic), *rate.values, ('age_s', f'{age:.4f}'),
                   ('messages', str(self.count)))
         if age > stale_after_s:
-            return Report(Level.ERROR, f'{self.topic}: no data for {age:.3f} s', values)
+            # netft_driver withholds error, out-of-range and unbiased samples: silence is
+            # how the box's health reaches this node (see the module docstring).
+            return Report(Level.ERROR, f'{self.topic}: no data for {age:.3f} s (box silent, '
+                          'erroring, out of range or unbiased: see the netft_driver '
+                          'diagnostics)', values)
         return Report(rate.level, f'{self.topic}: {rate.message}', values)

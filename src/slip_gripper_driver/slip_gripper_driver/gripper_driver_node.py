@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: Apache-2.0
-"""``gripper_driver``: lifecycle node around `core.bridge.GripperDriverCore` (issue 5).
+"""``gripper_driver``: lifecycle node around `core.driver_core.GripperDriverCore` (issue 5).
 
 The 500 Hz grasp-force loop runs on the serial reader thread inside the core and never crosses
 DDS: each telemetry line is parsed, the controller steps and ``T<volts>`` is written before the
@@ -7,11 +7,15 @@ line's results are published from that same thread (rclpy publishing is thread-s
 Net F/T boxes (``ft.mode: embedded``) feed the loop from their own reader threads; with
 ``ft.mode: topic`` the loop consumes ``finger_k/ft/wrench`` from standalone ``netft_driver``s.
 
-Lifecycle: configure opens the port (FAILURE naming it) and starts both RDT streams (FAILURE
-naming the box); activate arms and starts the reader and the link watchdog (a thread of the
-core checking every 5 ms, independent of the executor); deactivate, cleanup and shutdown write
-the safe voltage **first**. Link faults, reconnections and firmware restarts disarm: no force
-is applied until ``gripper/arm``.
+Lifecycle: configure opens the port and starts both RDT streams (FAILURE naming the box); a
+port that cannot be opened yet (missing, busy) is logged and configure succeeds without it:
+activate then keeps opening it with back-off (``reconnect.*``) until it works or the node is
+deactivated. Activate arms and starts the reader and the link watchdog (a thread of the core
+checking every 5 ms, independent of the executor); deactivate, cleanup and shutdown write the
+safe voltage **first**, and cleanup/shutdown undo the GC freeze of configure (see
+`core.realtime`). Link faults, reconnections and firmware restarts disarm: no force is
+applied until ``gripper/arm``. ``gripper/bias_ft`` is refused while the pads may be loaded
+(`GripperBridge.bias_refusal`).
 
 Latency (``realtime.*``): the reader threads run ``SCHED_FIFO`` when permitted (a warning
 otherwise) and the objects alive after configure are frozen out of the GC; see
@@ -22,11 +26,13 @@ answer when the procedure has finished and run in their own callback group.
 """
 from __future__ import annotations
 
+import functools
 import math
 import sys
 import threading
 import time
-from typing import Any, Callable
+from typing import Any
+from collections.abc import Callable
 
 from geometry_msgs.msg import WrenchStamped
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
@@ -37,23 +43,29 @@ from sensor_msgs.msg import JointState
 from slip_msgs.msg import GraspForceCommand, GripperStatus, MotorCommand, TransformArray
 from std_srvs.srv import Trigger
 
-from slip_gripper_driver import ros_conv
+from slip_gripper_driver import gripper_msgs_conv
 from slip_cell_common.diagnostics import DiagnosticsPublisher
+from slip_cell_common.time_conv import clock_seconds
 from slip_cell_common.node_main import run_node
 from slip_cell_common.param_binding import ParameterBinding
 from slip_cell_common.qos import (COMMAND, LATCHED, QUIET_PUB, QUIET_SUB, SENSOR_PUB,
                                             SENSOR_SUB, overridable)
-from slip_gripper_driver.core.bridge import (BridgeDiagnostics, GripperDriverCore, LineResult,
-                                             LinkState, WatchdogResult)
+from slip_gripper_driver.core.driver_core import GripperDriverCore
+from slip_gripper_driver.core.gripper_records import (BridgeDiagnostics, LineResult, LinkState,
+                                                      WatchdogResult)
 from slip_gripper_driver.core.force_control import BypassReason
 from slip_cell_common.core.frames import FrameParams, finger_transforms, static_transforms
+from slip_cell_common.core.gripper_urdf import finger_joint_names
+from slip_cell_common.core import names
 from slip_cell_common.core.monitors import Level, Report
-from slip_gripper_driver.core.netft import NetFTError
+from slip_gripper_driver.core.netft_client import NetFTError
 from slip_cell_common.core.param_schema import ParameterError
-from slip_gripper_driver.core.realtime import ThreadTuning, freeze_gc
+from slip_gripper_driver.core.realtime import ThreadTuning, freeze_gc, unfreeze_gc
 from slip_cell_common.core.serial_transport import ByteStream, LinkError, open_stream
 from slip_gripper_driver.ft_channel import (FT_SUPERVISE_PERIOD_S, FtChannel, TopicFtInput,
                                             run_bias, wrench_publisher)
+from slip_gripper_driver.gripper_action import BridgePort, GripperActionServers
+from slip_gripper_driver.gripper_model import GripperModelPublisher
 from slip_gripper_driver.node_params import GripperDriverParams
 
 #: Link watchdog period [s] (≤ 10 ms: stale detection ≤ 20 + 5 ms). It runs on a thread of
@@ -107,6 +119,8 @@ class GripperDriverNode(LifecycleNode):
         self.frame_params = ParameterBinding(self, FrameParams, prefix='frames.')
         self.params.on_change(self._on_params)
         self.core: GripperDriverCore | None = None
+        self._open_retry = False  # configure could not open the port: activation retries
+        self._gc_frozen = False
         self.channels: list[FtChannel] = []
         self.topic_inputs: list[TopicFtInput] = []
         self.last_error = ''
@@ -120,8 +134,11 @@ class GripperDriverNode(LifecycleNode):
         self._rate_ref: tuple[float, int] | None = None
         self._homing_finished = threading.Event()
         self._entities: list[Any] = []
-        self._timers: list[Any] = []
+        self._endpoint_timers: list[Any] = []
         self._diag: TaskDiagnostics | None = None
+        self._model: GripperModelPublisher | None = None
+        self._actions: GripperActionServers | None = None
+        self._action_group = ReentrantCallbackGroup()
         self._pubs: dict[str, Any] = {}
         self._bias_clients: list[Any] = []
         self._long_group = MutuallyExclusiveCallbackGroup()
@@ -134,7 +151,7 @@ class GripperDriverNode(LifecycleNode):
     # ------------------------------------------------------------------ helpers
     def now(self) -> float:
         """Node clock [s] (sim time under ``use_sim_time``): the stamp of every sample."""
-        return self.get_clock().now().nanoseconds * 1e-9
+        return clock_seconds(self.get_clock())
 
     def _fail(self, message: str) -> TransitionCallbackReturn:
         self.last_error = message
@@ -183,16 +200,24 @@ class GripperDriverNode(LifecycleNode):
                                  on_result=self._on_result, on_event=self._on_event,
                                  opener=_opener(cfg.link.fault_after),
                                  thread_setup=tuning.apply)
+        self._open_retry = False
         try:
             core.configure()
         except LinkError as exc:
-            return self._fail(f'cannot open the gripper serial port: {exc}')
+            # Port missing, busy or still enumerating: configured without it; activation
+            # keeps opening it with back-off until it works or the node is deactivated.
+            self._open_retry = True
+            self.last_error = f'cannot open the gripper serial port: {exc}'
+            self.get_logger().error(
+                f'{self.last_error}; configured without the port: it is opened with back-off '
+                f'({cfg.reconnect.initial_delay:g} s doubling up to {cfg.reconnect.max_delay:g} '
+                's) while the node is active')
         self.core = core
         if cfg.ft.mode == 'embedded':
-            boxes = ((1, cfg.ft.finger_1.address), (2, cfg.ft.finger_2.address))
-            for finger, address in boxes:
-                channel = FtChannel(finger, address, cfg.ft, cfg.bias, clock=self.now,
-                                    sink=self._ft_sink,
+            for finger, address, port, http_port in cfg.ft.boxes():
+                channel = FtChannel(finger, address, cfg.ft.stream, cfg.bias, port=port,
+                                    http_port=http_port,
+                                    start=cfg.ft.start, clock=self.now, sink=self._ft_sink,
                                     restart_initial_s=cfg.reconnect.initial_delay,
                                     restart_max_s=cfg.reconnect.max_delay,
                                     thread_setup=tuning.apply)
@@ -205,6 +230,7 @@ class GripperDriverNode(LifecycleNode):
         if cfg.realtime.freeze_gc:
             # Everything configure keeps is alive now: later collections never scan it.
             freeze_gc()
+            self._gc_frozen = True
         self.get_logger().info(
             f'configured: {cfg.serial.port}, F/T {cfg.ft.mode}'
             + (''.join(f', finger {c.finger} at {c.name}' for c in self.channels)))
@@ -219,7 +245,7 @@ class GripperDriverNode(LifecycleNode):
         for channel in self.channels:
             channel.publishing = True
         try:
-            self.core.activate(t)
+            self.core.activate(t, open_retry=self._open_retry)
         except LinkError as exc:
             self._publishing = False
             for channel in self.channels:
@@ -228,12 +254,23 @@ class GripperDriverNode(LifecycleNode):
             self.get_logger().error(self.last_error)
             return FAILURE
         self._pubs['static_frames'].publish(
-            ros_conv.transforms_msg(t, static_transforms(self._frames)))
+            gripper_msgs_conv.transforms_msg(t, static_transforms(self._frames)))
+        if self._model is not None:
+            self._model.send_static(t)
         self._last_state = LinkState.INACTIVE
         self.core.start_watchdog(WATCHDOG_PERIOD_S, self._on_watchdog)
         if self._cfg.bias.on_activate:
             self._start_background_bias(t)
-        self.get_logger().info(f'active: armed on {self.core.port}')
+        else:
+            self.get_logger().info(
+                f'{names.ft_wrench(1)} and {names.ft_wrench(2)} stay silent until '
+                f'{names.GRIPPER_BIAS_FT_SRV} has run (gripper open and empty): the wrench is '
+                'published bias-removed only')
+        if self.core.link.connected:
+            self.get_logger().info(f'active: armed on {self.core.port}')
+        else:
+            self.get_logger().warning(f'active without the port: opening {self.core.port} with '
+                                      'back-off until it works or the node is deactivated')
         return super().on_activate(state)
 
     def on_deactivate(self, state: LifecycleState) -> TransitionCallbackReturn:
@@ -278,30 +315,42 @@ class GripperDriverNode(LifecycleNode):
             channel.close()
         self.channels = []
         self._destroy_endpoints()
+        if self._gc_frozen:
+            # The loop threads have ended: let the final collection at exit tear rclpy and
+            # DDS down again (frozen, they outlived it: heap corruption at exit, issue 16).
+            unfreeze_gc()
+            self._gc_frozen = False
 
     # ------------------------------------------------------------------ endpoints
     def _create_endpoints(self, cfg: GripperDriverParams) -> None:
         opts = overridable()
         pub = self.create_publisher
         self._pubs = {
-            'status': pub(GripperStatus, 'gripper/status', SENSOR_PUB,
+            'status': pub(GripperStatus, names.GRIPPER_STATUS, SENSOR_PUB,
                           qos_overriding_options=opts, event_callbacks=QUIET_PUB),
-            'motor': pub(MotorCommand, 'gripper/motor_command', SENSOR_PUB,
+            'motor': pub(MotorCommand, names.MOTOR_COMMAND, SENSOR_PUB,
                          qos_overriding_options=opts, event_callbacks=QUIET_PUB),
-            'joints': pub(JointState, 'gripper/joint_states', SENSOR_PUB,
+            'joints': pub(JointState, names.GRIPPER_JOINT_STATES, SENSOR_PUB,
                           qos_overriding_options=opts, event_callbacks=QUIET_PUB),
-            'static_frames': pub(TransformArray, 'gripper/static_frames', LATCHED,
+            'static_frames': pub(TransformArray, names.STATIC_FRAMES, LATCHED,
                                  qos_overriding_options=opts),
-            'finger_frames': pub(TransformArray, 'gripper/finger_frames', SENSOR_PUB,
+            'finger_frames': pub(TransformArray, names.FINGER_FRAMES, SENSOR_PUB,
                                  qos_overriding_options=opts, event_callbacks=QUIET_PUB),
         }
         entities: list[Any] = list(self._pubs.values())
+        # /tf_static, /tf and robot_description (latched now, before activation).
+        self._model = GripperModelPublisher(self, self._frames)
+        # control_msgs GripperCommand / ParallelGripperCommand (goals need a homed gripper).
+        self._actions = GripperActionServers(
+            self, BridgePort(lambda: self.core.bridge if self.core is not None else None,
+                             self.now),
+            finger_joint_names(self._frames), callback_group=self._action_group)
         for channel in self.channels:
             k = channel.finger
-            frame = self._frames.frame_id(f'ft_sensor_{k}')
-            wrench = pub(WrenchStamped, f'finger_{k}/ft/wrench', SENSOR_PUB,
+            frame = self._frames.frame_id(names.ft_sensor_frame(k))
+            wrench = pub(WrenchStamped, names.ft_wrench(k), SENSOR_PUB,
                          qos_overriding_options=opts, event_callbacks=QUIET_PUB)
-            raw = pub(WrenchStamped, f'finger_{k}/ft/raw', SENSOR_PUB,
+            raw = pub(WrenchStamped, names.ft_raw(k), SENSOR_PUB,
                       qos_overriding_options=opts, event_callbacks=QUIET_PUB)
             channel.publish_wrench = wrench_publisher(wrench, frame)
             channel.publish_raw = wrench_publisher(raw, frame)
@@ -310,34 +359,38 @@ class GripperDriverNode(LifecycleNode):
         self._bias_clients = []
         if cfg.ft.mode == 'topic':
             for k in (1, 2):
-                topic = f'finger_{k}/ft/wrench'
-                source = TopicFtInput(k, topic, cfg.ft.expected_rate / cfg.ft.publish_decimation,
-                                      cfg.ft.rate_tolerance, self._ft_sink)
+                topic = names.ft_wrench(k)
+                stream = cfg.ft.stream
+                source = TopicFtInput(k, topic, stream.expected_rate / stream.publish_decimation,
+                                      stream.rate_tolerance, self._ft_sink)
                 self.topic_inputs.append(source)
+
+                def on_wrench(msg: WrenchStamped, s: TopicFtInput = source) -> None:
+                    s.on_wrench(*gripper_msgs_conv.wrench_from_msg(msg))
+
                 # One group per finger: F/T delivery (1 kHz in all) never waits behind
                 # timers, services or the other finger in the node's default group.
                 entities.append(self.create_subscription(
-                    WrenchStamped, topic,
-                    lambda msg, s=source: s.on_wrench(*ros_conv.wrench_from_msg(msg)),
-                    SENSOR_SUB, callback_group=MutuallyExclusiveCallbackGroup(),
-                    event_callbacks=QUIET_SUB))
-                client = self.create_client(Trigger, f'finger_{k}/ft/bias',
+                    WrenchStamped, topic, on_wrench, SENSOR_SUB,
+                    callback_group=MutuallyExclusiveCallbackGroup(), event_callbacks=QUIET_SUB))
+                client = self.create_client(Trigger, names.ft_bias_srv(k),
                                             callback_group=self._client_group)
                 self._bias_clients.append(client)
                 entities.append(client)
-        entities.append(self.create_subscription(GraspForceCommand, 'gripper/grasp_force_cmd',
+        entities.append(self.create_subscription(GraspForceCommand, names.GRASP_FORCE_CMD,
                                                  self._on_command, COMMAND))
         entities += [
-            self.create_service(Trigger, 'gripper/home', self._srv_home,
+            self.create_service(Trigger, names.GRIPPER_HOME_SRV, self._srv_home,
                                 callback_group=self._long_group),
-            self.create_service(Trigger, 'gripper/bias_ft', self._srv_bias,
+            self.create_service(Trigger, names.GRIPPER_BIAS_FT_SRV, self._srv_bias,
                                 callback_group=self._long_group),
-            self.create_service(Trigger, 'gripper/stop', self._srv_stop),
-            self.create_service(Trigger, 'gripper/arm', self._srv_arm),
+            self.create_service(Trigger, names.GRIPPER_STOP_SRV, self._srv_stop),
+            self.create_service(Trigger, names.GRIPPER_ARM_SRV, self._srv_arm),
         ]
         self._entities = entities
-        self._timers = [self.create_timer(FT_SUPERVISE_PERIOD_S, self._on_ft_supervise,
-                                          clock=self._steady)]
+        # Not `self._timers`: that name is rclpy.Node's own list of the node's timers.
+        self._endpoint_timers = [self.create_timer(FT_SUPERVISE_PERIOD_S,
+                                                   self._on_ft_supervise, clock=self._steady)]
         port = cfg.serial.port
         diag = TaskDiagnostics(self, port)
         diag.add_task('link', self._diag_link, port)
@@ -347,27 +400,35 @@ class GripperDriverNode(LifecycleNode):
             if self.channels:
                 hw = self.channels[k - 1].address
             else:
-                hw = f'finger_{k}/ft/wrench'
-            diag.add_task(f'ft_{k}', lambda now, k=k: self._diag_ft(k, now), hw)
+                hw = names.ft_wrench(k)
+            diag.add_task(f'ft_{k}', functools.partial(self._diag_ft, k), hw)
         self._diag = diag
 
     def _destroy_endpoints(self) -> None:
-        for timer in self._timers:
+        for timer in self._endpoint_timers:
             self.destroy_timer(timer)
-        self._timers = []
+        self._endpoint_timers = []
         if self._diag is not None:
             self._diag.destroy()
             self._diag = None
         for entity in self._entities:
             kind = type(entity).__name__
-            destroy = {'Publisher': self.destroy_publisher,
-                       'Subscription': self.destroy_subscription,
-                       'Service': self.destroy_service,
-                       'Client': self.destroy_client}.get(kind)
+            destroyers: dict[str, Callable[[Any], bool]] = {
+                'Publisher': self.destroy_publisher,
+                'Subscription': self.destroy_subscription,
+                'Service': self.destroy_service,
+                'Client': self.destroy_client}
+            destroy = destroyers.get(kind)
             if destroy is not None:
                 destroy(entity)
         self._entities = []
         self._pubs = {}
+        if self._model is not None:
+            self._model.destroy()
+            self._model = None
+        if self._actions is not None:
+            self._actions.destroy()
+            self._actions = None
         self.topic_inputs = []
         self._bias_clients = []
 
@@ -379,42 +440,51 @@ class GripperDriverNode(LifecycleNode):
         pubs = self._pubs
         status = result.status
         if status is not None:
-            pubs['status'].publish(ros_conv.status_msg(status))
+            pubs['status'].publish(gripper_msgs_conv.status_msg(status))
+            actions = self._actions
+            if actions is not None:
+                actions.on_status(status)   # gripper actions: outer position loop
             self._lines += 1
             if self._lines % self._cfg.joint_states.decimation == 0:
                 self._publish_joints(status.stamp, status.opening, status.opening_rate,
                                      status.measured_grasp_force)
         if result.motor is not None:
-            pubs['motor'].publish(ros_conv.motor_msg(result.motor))
+            pubs['motor'].publish(gripper_msgs_conv.motor_msg(result.motor))
 
     def _publish_joints(self, stamp: float, opening: float, rate: float, force: float) -> None:
         prefix = self._frames.tf_prefix
-        self._pubs['joints'].publish(ros_conv.joint_state_msg(
-            stamp, (prefix + 'finger_1_joint', prefix + 'finger_2_joint'), opening, rate, force))
+        self._pubs['joints'].publish(gripper_msgs_conv.joint_state_msg(
+            stamp, (prefix + names.finger_joint(1), prefix + names.finger_joint(2)), opening, rate,
+            force))
         if math.isfinite(opening):  # frames need a homed opening
             self._pubs['finger_frames'].publish(
-                ros_conv.transforms_msg(stamp, finger_transforms(self._frames, opening)))
+                gripper_msgs_conv.transforms_msg(stamp, finger_transforms(self._frames, opening)))
+        model = self._model
+        if model is not None:
+            model.send_fingers(stamp, opening)
 
     def _ft_sink(self, finger: int, stamp: float, wrench: Any) -> None:
         """Net F/T reader thread (or topic callback): feed the loop's F_m."""
         core = self.core
         if core is None:
             return
-        fz = float(wrench[2]) if wrench is not None else math.nan
-        core.bridge.on_ft_sample(finger, stamp, fz, wrench is not None)
+        core.bridge.on_ft_wrench(finger, stamp, wrench)
 
     def _on_event(self, t: float, kind: str, message: str) -> None:
         del t
         log = self.get_logger()
         if kind in ('homing_done', 'homing_failed'):
             self._homing_finished.set()
+        # Each message states what the driver did (core.driver_core.EVENT_TEXT and the link
+        # watchdog): nothing is appended here that the driver did not do.
         if kind in ('connected', 'homing_done'):
             log.info(message)
-        elif kind in ('lost', 'firmware_restart', 'fault', 'homing_failed'):
-            log.error(f'{message}; disarmed, gripper/arm required' if kind != 'homing_failed'
-                      else message)
-        elif kind == 'stale':
-            log.warning(f'{message}; safe voltage written, disarmed (gripper/arm re-arms)')
+        elif kind == 'lost':
+            log.error(f'{message}; safe state, disarmed (gripper/arm required), reconnecting')
+        elif kind in ('firmware_restart', 'fault', 'homing_failed', 'host_stall_fault'):
+            log.error(message)
+        elif kind in ('stale', 'host_stall'):
+            log.warning(message)
         else:  # 'error': failed reopen attempts, repeated with back-off
             log.warning(message, throttle_duration_sec=1.0)
 
@@ -428,10 +498,13 @@ class GripperDriverNode(LifecycleNode):
         changed = result.state != self._last_state
         self._last_state = result.state
         pub = self._pubs.get('status')
-        if result.state not in (LinkState.OK, LinkState.INACTIVE) and self._publishing and \
+        # LAGGING: telemetry waits at the port (the host is behind): the reader publishes
+        # the status of those lines when it catches up; nothing to add from here.
+        if result.state not in (LinkState.OK, LinkState.INACTIVE, LinkState.LAGGING) and \
+                self._publishing and \
                 pub is not None and (changed or self._ticks % DEGRADED_STATUS_EVERY == 0):
             # No lines arrive, so the reader publishes nothing: report link_ok = false here.
-            pub.publish(ros_conv.status_msg(core.bridge.status(t)))
+            pub.publish(gripper_msgs_conv.status_msg(core.bridge.status(t)))
 
     # ------------------------------------------------------------------ executor callbacks
     def _on_ft_supervise(self) -> None:
@@ -445,11 +518,11 @@ class GripperDriverNode(LifecycleNode):
         core = self.core
         if core is None:
             return
-        force, stamp, timeout, source = ros_conv.grasp_command(msg)
+        force, stamp, timeout, source = gripper_msgs_conv.grasp_command(msg)
         result = core.bridge.set_grasp_force(force, self.now(), stamp=stamp, timeout=timeout,
                                              source=source)
         if not result.accepted:
-            self.get_logger().warning(f'gripper/grasp_force_cmd: command {force!r} N refused: '
+            self.get_logger().warning(f'{names.GRASP_FORCE_CMD}: command {force!r} N refused: '
                                       f'{result.reason}', throttle_duration_sec=1.0)
 
     def _on_params(self, cfg: GripperDriverParams) -> None:
@@ -458,7 +531,7 @@ class GripperDriverNode(LifecycleNode):
         if self.core is not None:
             self.core.bridge.set_params(cfg.bridge())
         for channel in self.channels:
-            channel.apply(cfg.ft, cfg.bias)
+            channel.apply(cfg.ft.stream, cfg.bias)
 
     def _on_clock_jump(self, jump: TimeJump) -> None:
         if self.core is not None and jump.delta.nanoseconds < 0:
@@ -493,6 +566,11 @@ class GripperDriverNode(LifecycleNode):
         if self.core is None:  # the streams run from configure on: inactive is fine
             response.success, response.message = False, 'gripper_driver is not configured'
             return response
+        refusal = self.core.bridge.bias_refusal(self.now())
+        if refusal is not None:
+            response.success, response.message = False, f'bias refused: {refusal}'
+            self.get_logger().error(response.message)
+            return response
         if self.channels:
             ok, message = run_bias(self.channels, self.now,
                                    self._cfg.force_control.ft_fault_after)
@@ -514,7 +592,7 @@ class GripperDriverNode(LifecycleNode):
                 continue
             done = threading.Event()
             future = client.call_async(Trigger.Request())
-            future.add_done_callback(lambda _f: done.set())
+            future.add_done_callback(lambda _f, done=done: done.set())
             if not done.wait(timeout):
                 client.remove_pending_request(future)
                 ok = False
@@ -527,6 +605,10 @@ class GripperDriverNode(LifecycleNode):
 
     def _start_background_bias(self, t: float) -> None:
         """``bias.on_activate``: start the windows without waiting (results in diagnostics)."""
+        refusal = self.core.bridge.bias_refusal(t) if self.core is not None else None
+        if refusal is not None:
+            self.get_logger().error(f'bias.on_activate: bias refused: {refusal}')
+            return
         for channel in self.channels:
             channel.start_bias(t)
         for client in self._bias_clients:
@@ -575,6 +657,9 @@ class GripperDriverNode(LifecycleNode):
             ('firmware_rejects', str(d.firmware_rejects)),
             ('firmware_restarts', str(d.firmware_restarts)), ('reconnects', str(d.reconnects)),
             ('link_losses', str(d.link_losses)), ('stale_events', str(d.stale_events)),
+            ('host_stalls', str(d.host_stalls)),
+            ('max_host_stall_s', f'{d.max_host_stall_s:.3f}'),
+            ('catch_up_lines', str(d.catch_up_lines)), ('resume_ramps', str(d.resume_ramps)),
             ('connect_failures', str(s.connect_failures)),
             ('write_failures', str(d.write_failures)), ('armed', str(d.armed).lower()),
             ('safe_reason', d.safe_reason), ('last_error', s.last_error),
@@ -585,6 +670,9 @@ class GripperDriverNode(LifecycleNode):
                           + (f' ({s.last_error})' if s.last_error else ''), values)
         if d.link_state == LinkState.INACTIVE:
             return Report(Level.OK, f'{core.port}: connected, inactive', values)
+        if d.link_state == LinkState.LAGGING:
+            return Report(Level.WARN, f'{core.port}: host stall: telemetry waits unprocessed '
+                          f'for {d.line_age_s:.3f} s (the firmware keeps sending)', values)
         if abs(rate - TELEMETRY_RATE_HZ) > TELEMETRY_RATE_TOLERANCE * TELEMETRY_RATE_HZ:
             return Report(Level.WARN, f'{core.port}: line rate {rate:.0f} Hz', values)
         if not d.armed:

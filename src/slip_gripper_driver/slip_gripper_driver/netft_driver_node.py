@@ -5,6 +5,11 @@ Publishes ``finger_<k>/ft/wrench`` (bias removed; nothing before the first bias)
 ``publish_raw``, ``finger_<k>/ft/raw``, both stamped at datagram arrival in frame
 ``ft_sensor_<k>``; serves ``finger_<k>/ft/bias``; reports diagnostics task ``ft``.
 
+``finger_<k>/ft/wrench`` carries measurements only: records with an error in the status word,
+beyond the measuring range, or taken after a box restart lost the bias are never published on
+it (``publish_on_error`` puts the first two on ``ft/raw`` only). A ``gripper_driver`` in
+``ft.mode: topic`` thus sees such a box as stale and falls back safely (see `ft_channel`).
+
 Lifecycle: configure reads ``netftapi2.xml`` (if asked), opens the socket and starts the RDT
 stream (FAILURE naming the box); activate/deactivate switch publishing; cleanup and shutdown
 send the stop command (0x0000) and close the socket. A box serves one client: never run this
@@ -22,14 +27,16 @@ from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackRet
 from std_srvs.srv import Trigger
 
 from slip_cell_common.diagnostics import DiagnosticsPublisher
+from slip_cell_common.time_conv import clock_seconds
+from slip_cell_common.core import names
 from slip_cell_common.node_main import run_node
 from slip_cell_common.param_binding import ParameterBinding
 from slip_cell_common.qos import SENSOR_PUB, overridable
 from slip_cell_common.core.monitors import Level, Report
-from slip_gripper_driver.core.netft import NetFTError
+from slip_gripper_driver.core.netft_client import NetFTError
 from slip_cell_common.core.param_schema import ParameterError
-from slip_gripper_driver.ft_channel import (FT_SUPERVISE_PERIOD_S, FtChannel, run_bias,
-                                            wrench_publisher)
+from slip_gripper_driver.ft_channel import (BIAS_LOST, FT_SUPERVISE_PERIOD_S, FtChannel,
+                                            run_bias, wrench_publisher)
 from slip_gripper_driver.node_params import NetFTDriverParams
 
 SUCCESS = TransitionCallbackReturn.SUCCESS
@@ -55,10 +62,11 @@ class NetFTDriverNode(LifecycleNode):
         self._diag: DiagnosticsPublisher | None = None
         self._bias_group = MutuallyExclusiveCallbackGroup()
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self._bias_lost_logged = False
 
     def now(self) -> float:
         """Node clock [s]: the stamp of every sample."""
-        return self.get_clock().now().nanoseconds * 1e-9
+        return clock_seconds(self.get_clock())
 
     def _fail(self, message: str) -> TransitionCallbackReturn:
         self.last_error = message
@@ -76,7 +84,7 @@ class NetFTDriverNode(LifecycleNode):
         except ParameterError as exc:
             return self._fail(f'invalid parameters: {exc}')
         self._cfg = cfg
-        channel = FtChannel(cfg.finger, cfg.address, cfg.ft(), cfg.bias, clock=self.now,
+        channel = FtChannel(cfg.finger, cfg.address, cfg.stream, cfg.bias, clock=self.now,
                             restart_initial_s=cfg.reconnect.initial_delay,
                             restart_max_s=cfg.reconnect.max_delay)
         try:
@@ -87,15 +95,15 @@ class NetFTDriverNode(LifecycleNode):
         k = cfg.finger
         frame = cfg.resolved_frame_id()
         opts = overridable()
-        wrench = self.create_publisher(WrenchStamped, f'finger_{k}/ft/wrench', SENSOR_PUB,
+        wrench = self.create_publisher(WrenchStamped, names.ft_wrench(k), SENSOR_PUB,
                                        qos_overriding_options=opts)
-        raw = self.create_publisher(WrenchStamped, f'finger_{k}/ft/raw', SENSOR_PUB,
+        raw = self.create_publisher(WrenchStamped, names.ft_raw(k), SENSOR_PUB,
                                     qos_overriding_options=opts)
         channel.publish_wrench = wrench_publisher(wrench, frame)
         channel.publish_raw = wrench_publisher(raw, frame)
         self._entities = [
             (wrench, self.destroy_publisher), (raw, self.destroy_publisher),
-            (self.create_service(Trigger, f'finger_{k}/ft/bias', self._srv_bias,
+            (self.create_service(Trigger, names.ft_bias_srv(k), self._srv_bias,
                                  callback_group=self._bias_group), self.destroy_service),
             (self.create_timer(FT_SUPERVISE_PERIOD_S, self._on_supervise, clock=self._steady),
              self.destroy_timer)]
@@ -149,13 +157,22 @@ class NetFTDriverNode(LifecycleNode):
 
     # ------------------------------------------------------------------ callbacks
     def _on_supervise(self) -> None:
-        if self.channel is not None:
-            self.channel.supervise(self.now(), self._cfg.receive_timeout)
+        channel = self.channel
+        if channel is None:
+            return
+        channel.supervise(self.now(), self._cfg.receive_timeout)
+        if channel.bias_lost != self._bias_lost_logged:
+            self._bias_lost_logged = channel.bias_lost
+            if channel.bias_lost:
+                k = channel.finger
+                self.get_logger().error(f'{channel.name}: {BIAS_LOST}; finger_{k}/ft/wrench '
+                                        f'withheld until finger_{k}/ft/bias succeeds (bias '
+                                        'with the pads unloaded)')
 
     def _on_params(self, cfg: NetFTDriverParams) -> None:
         self._cfg = cfg
         if self.channel is not None:
-            self.channel.apply(cfg.ft(), cfg.bias)
+            self.channel.apply(cfg.stream, cfg.bias)
 
     def _srv_bias(self, request: Trigger.Request, response: Trigger.Response
                   ) -> Trigger.Response:

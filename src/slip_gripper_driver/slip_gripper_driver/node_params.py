@@ -10,13 +10,14 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from slip_gripper_driver.core.bridge import BridgeParams, CommandParams, LinkParams
+from slip_gripper_driver.core.bridge_params import BridgeParams, CommandParams, LinkParams
 from slip_gripper_driver.core.force_control import ForceControlParams
 from slip_gripper_driver.core.homing import HomingParams
-from slip_gripper_driver.core.netft import (RDT_PORT, BiasParams, FtParams, force_unit_factor,
-                                            torque_unit_factor)
+from slip_gripper_driver.core.ft_bias import BiasParams
+from slip_gripper_driver.core.netft_params import FtParams, FtStreamParams
 from slip_gripper_driver.core.observer import ObserverParams
-from slip_cell_common.core.param_schema import ParameterError
+from slip_cell_common.core.param_schema import ParameterError, flattened_group
+from slip_cell_common.core import names
 from slip_gripper_driver.core.protocol import ActuatorParams
 from slip_gripper_driver.core.realtime import RealtimeParams
 from slip_cell_common.core.serial_transport import ReconnectParams, SerialParams
@@ -109,31 +110,9 @@ class NetFTDriverParams:
         'description': 'finger number: selects finger_<k>/ft/* and the default frame'})
     address: str = field(default='', metadata={
         'required': True, 'read_only': True, 'description': 'Net F/T box IP address'})
-    port: int = field(default=RDT_PORT, metadata={
-        'range': (1, 65535), 'read_only': True, 'description': 'RDT UDP port'})
     frame_id: str = field(default='', metadata={
         'read_only': True, 'description': "wrench frame id; '' = ft_sensor_<finger>"})
-    read_config: bool = field(default=True, metadata={
-        'read_only': True, 'description': 'read netftapi2.xml on configure'})
-    counts_per_force: float = field(default=0.0, metadata={
-        'unit': 'counts/unit', 'range': (0.0, 1.0e12), 'read_only': True,
-        'description': 'cfgcpf; required when read_config is false'})
-    counts_per_torque: float = field(default=0.0, metadata={
-        'unit': 'counts/unit', 'range': (0.0, 1.0e12), 'read_only': True,
-        'description': 'cfgcpt; required when read_config is false'})
-    force_unit: str = field(default='N', metadata={
-        'read_only': True, 'description': 'box force unit (lbf, klbf, kgf, kN, N)'})
-    torque_unit: str = field(default='N-m', metadata={
-        'read_only': True,
-        'description': 'box torque unit (lbf-in, lbf-ft, N-mm, kgf-cm, kN-m, N-m)'})
-    expected_rate: float = field(default=1000.0, metadata={
-        'unit': 'Hz', 'range': (1.0, 10000.0), 'description': 'RDT rate for diagnostics'})
-    rate_tolerance: float = field(default=0.1, metadata={
-        'unit': '-', 'range': (0.0, 1.0), 'description': 'relative rate tolerance'})
-    publish_decimation: int = field(default=2, metadata={
-        'range': (1, 100), 'description': 'publish every n-th wrench'})
-    publish_raw: bool = field(default=False, metadata={
-        'description': 'also publish finger_<k>/ft/raw'})
+    stream: FtStreamParams = flattened_group(FtStreamParams)
     receive_timeout: float = field(default=0.1, metadata={
         'unit': 's', 'range': (0.005, 10.0),
         'description': 'no record for this long: the stream is re-requested (back-off)'})
@@ -142,31 +121,11 @@ class NetFTDriverParams:
 
     def resolved_frame_id(self) -> str:
         """``frame_id``, or ``ft_sensor_<finger>`` when empty."""
-        return self.frame_id or f'ft_sensor_{self.finger}'
-
-    def ft(self) -> FtParams:
-        """The equivalent `FtParams` (scale and publishing settings of one box)."""
-        return FtParams(port=self.port, read_config=self.read_config,
-                        counts_per_force=self.counts_per_force,
-                        counts_per_torque=self.counts_per_torque, force_unit=self.force_unit,
-                        torque_unit=self.torque_unit, expected_rate=self.expected_rate,
-                        rate_tolerance=self.rate_tolerance,
-                        publish_decimation=self.publish_decimation,
-                        publish_raw=self.publish_raw)
+        return self.frame_id or names.ft_sensor_frame(self.finger)
 
     def validate(self) -> None:
         """Raise `ParameterError` listing every invalid field and combination."""
-        extra: list[str] = []
-        if not self.read_config and (self.counts_per_force <= 0.0
-                                     or self.counts_per_torque <= 0.0):
-            extra.append('counts_per_force and counts_per_torque are required (> 0) when '
-                         'read_config is false')
-        for name, check in (('force_unit', force_unit_factor),
-                            ('torque_unit', torque_unit_factor)):
-            try:
-                check(getattr(self, name))
-            except ValueError as exc:
-                extra.append(str(exc))
+        extra = self.stream.combination_problems()
         if self.reconnect.initial_delay > self.reconnect.max_delay:
             extra.append(f'reconnect.initial_delay {self.reconnect.initial_delay} s exceeds '
                          f'reconnect.max_delay {self.reconnect.max_delay} s')

@@ -8,9 +8,10 @@ import numpy as np
 import pytest
 from scipy import signal
 
-from slip_gripper_driver.core.force_tracking import (ForceTrackingProfile, align_profile,
-                                                     analyze, bandwidth_3db, format_report,
-                                                     frequency_point, main, step_metrics)
+from slip_cell_common.core.force_profile import ForceTrackingProfile
+from slip_gripper_driver.core.force_tracking import (align_profile, analyze, bandwidth_3db,
+                                                     format_report, frequency_point, main,
+                                                     step_metrics)
 
 PROFILE = ForceTrackingProfile()
 

@@ -2,7 +2,6 @@
 """Grasp-force controller: the §2.3 law against hand-computed steps, and every §2.5 addition."""
 from __future__ import annotations
 
-import dataclasses
 import math
 
 import pytest
@@ -109,7 +108,7 @@ def test_measurement_selection() -> None:
     assert out1.closed_loop and out1.measured_force == pytest.approx(6.0)
     out_mean = GraspForceController(ForceControlParams(measurement='mean')).step(inp)
     assert out_mean.bypass_reason == BypassReason.FT_STALE
-    inp2 = dataclasses.replace(inp, ft_stamp_2=1.0)
+    inp2 = inp._replace(ft_stamp_2=1.0)
     assert GraspForceController(ForceControlParams()).step(inp2).measured_force == \
         pytest.approx(4.0)
     assert GraspForceController(ForceControlParams(measurement='finger_2')).step(
@@ -171,7 +170,7 @@ def test_ft_fault_limits_target_to_safe_hold_force_when_biased() -> None:
     fault = contact(1.0 + DT, 20.0, 20.0, ft_stamp_1=0.8, ft_stamp_2=0.8)  # 200 ms: fault
     out = ctl.step(fault)
     assert out.ft_fault and out.force_target == 5.0 and out.force_cmd == 5.0
-    unbiased = dataclasses.replace(fault, t=1.0 + 2 * DT, ft_biased=False)
+    unbiased = fault._replace(t=1.0 + 2 * DT, ft_biased=False)
     out = ctl.step(unbiased)  # open loop by design: the F/T is not part of the loop
     assert out.ft_fault and out.force_cmd == 20.0
     assert ctl.step(ForceLoopInput(t=2.0, target=1.0)).ft_fault  # never any sample
@@ -184,9 +183,9 @@ def test_command_expiry_policies(policy: str, expected: float) -> None:
     fresh = ForceLoopInput(t=1.04, target=20.0, target_stamp=1.0, target_timeout=0.05)
     out = ctl.step(fresh)
     assert not out.command_expired and out.force_target == 20.0
-    out = ctl.step(dataclasses.replace(fresh, t=1.06))
+    out = ctl.step(fresh._replace(t=1.06))
     assert out.command_expired and out.force_target == expected
-    no_timeout = dataclasses.replace(fresh, t=100.0, target_timeout=0.0)
+    no_timeout = fresh._replace(t=100.0, target_timeout=0.0)
     assert not ctl.step(no_timeout).command_expired
 
 
@@ -196,22 +195,22 @@ def test_end_stop_protection_until_next_target() -> None:
                              opening=0.0795, opening_rate=0.0002, stroke=0.080)
     t = 0.0
     while t < 0.998:
-        out = ctl.step(dataclasses.replace(at_stop, t=t))
+        out = ctl.step(at_stop._replace(t=t))
         assert out.force_cmd == -8.0 and out.bypass_reason == BypassReason.OPEN_COMMAND
         t += DT
     t = 1.0
-    out = ctl.step(dataclasses.replace(at_stop, t=t))
+    out = ctl.step(at_stop._replace(t=t))
     assert out.bypass_reason == BypassReason.END_STOP and out.force_cmd == 0.0
     # still latched when the fingers drift away, as long as the target is the same
-    out = ctl.step(dataclasses.replace(at_stop, t=t + DT, opening=0.07))
+    out = ctl.step(at_stop._replace(t=t + DT, opening=0.07))
     assert out.bypass_reason == BypassReason.END_STOP
     # a new target (new stamp) releases the latch
-    out = ctl.step(dataclasses.replace(at_stop, t=t + 2 * DT, target_stamp=1.001))
+    out = ctl.step(at_stop._replace(t=t + 2 * DT, target_stamp=1.001))
     assert out.bypass_reason == BypassReason.OPEN_COMMAND and out.force_cmd == -8.0
     # moving fingers never latch
     ctl.reset()
     for k in range(1000):
-        out = ctl.step(dataclasses.replace(at_stop, t=k * DT, opening_rate=0.01))
+        out = ctl.step(at_stop._replace(t=k * DT, opening_rate=0.01))
     assert out.bypass_reason == BypassReason.OPEN_COMMAND
 
 

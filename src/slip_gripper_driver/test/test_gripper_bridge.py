@@ -8,11 +8,13 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import re
 
 import pytest
 
-from slip_gripper_driver.core.bridge import (BridgeParams, CommandParams, GripperBridge,
-                                             LineResult, LinkState)
+from slip_gripper_driver.core.bridge import GripperBridge
+from slip_gripper_driver.core.bridge_params import BridgeParams, CommandParams
+from slip_gripper_driver.core.gripper_records import LineResult, LinkState
 from slip_gripper_driver.core.firmware_emulator import FirmwareEmulator, GripperModelParams
 from slip_gripper_driver.core.force_control import BypassReason, ForceControlParams
 from slip_cell_common.core.param_schema import ParameterError, flatten, from_flat
@@ -216,12 +218,12 @@ def test_reconnect_writes_safe_voltage_invalidates_homing_and_stays_disarmed() -
     rig.port_up = True
     n = len(rig.writes)
     rig.bridge.on_connected(rig.t + 0.5, '/dev/ttyACM0')
-    assert rig.writes[n:] == [b'T0.00\n']
+    assert rig.writes[n:] == [b'\nT0.00\n']  # one write: a newline ends any fragment first
     rig.run(0.2)
     status = rig.bridge.status(rig.t)
     assert status.reconnect_count == 1 and status.link_ok and not status.armed
     assert not status.homed and math.isnan(status.opening)
-    assert set(rig.writes[n:]) == {b'T0.00\n'}
+    assert set(rig.writes[n:]) == {b'\nT0.00\n', b'T0.00\n'}
     assert not rig.bridge.set_grasp_force(10.0, rig.t).accepted
 
 
@@ -327,3 +329,179 @@ def test_reset_after_a_backwards_clock_jump_keeps_arming_and_homing() -> None:
     status = rig.bridge.status(jumped)
     assert status.armed and not status.safe_state
     assert rig.bridge.diagnostics(jumped).command_age_s >= 0.0
+
+
+# ---------------------------------------------------------------------------- F/T bias
+def test_bias_is_refused_while_the_pads_may_be_loaded() -> None:
+    """Issue 16 item 1: a bias under load absorbs the load (10 N then read as 0 N)."""
+    rig = Rig()
+    rig.run(0.05)
+    assert rig.bridge.bias_refusal(rig.t) is None  # open, 1 mm from the object: free
+    assert rig.bridge.set_grasp_force(10.0, rig.t).accepted
+    rig.run(1.0)
+    refusal = rig.bridge.bias_refusal(rig.t)
+    assert refusal is not None
+    for reason in ('a squeezing grasp-force target of 10.0 N is active',
+                   'the motor is commanded to squeeze', 'finger 1 F/T measures',
+                   'finger 2 F/T measures', 'touched something'):
+        assert reason in refusal, refusal
+    rig.bridge.stop(rig.t)  # 0 V, target cleared: the pads relax but still touch the object
+    rig.run(0.5)
+    assert rig.emu.grasp_force < 0.1
+    refusal = rig.bridge.bias_refusal(rig.t)
+    assert refusal is not None and 'touched something' in refusal and 'active' not in refusal
+    assert rig.bridge.set_grasp_force(-4.0, rig.t).accepted  # open the gripper
+    rig.run(0.5)
+    assert rig.emu.opening > 0.035 and rig.bridge.bias_refusal(rig.t) is None
+
+
+def test_bias_refusal_sees_a_squeezing_stall_without_a_biased_ft() -> None:
+    rig = Rig()
+    rig.ft_on = False  # no F/T yet (the first bias of the day): the opening must tell
+    rig.run(0.05)
+    rig.bridge.set_grasp_force(10.0, rig.t)
+    rig.run(0.1)  # still closing: not a contact yet
+    assert math.isnan(rig.bridge.diagnostics(rig.t).contact_angle)
+    rig.run(0.5)
+    rig.bridge.stop(rig.t)
+    rig.run(0.3)
+    refusal = rig.bridge.bias_refusal(rig.t)
+    assert refusal is not None and 'touched something' in refusal
+    assert math.isfinite(rig.bridge.diagnostics(rig.t).contact_angle)
+    rig.bridge.set_grasp_force(-4.0, rig.t)
+    rig.run(0.5)
+    assert rig.bridge.bias_refusal(rig.t) is None
+    assert math.isnan(rig.bridge.diagnostics(rig.t).contact_angle)
+
+
+# ---------------------------------------------------------------------------- host stalls
+def _backlog(rig: Rig, seconds: float) -> list[tuple[bytes, bool]]:
+    """The firmware keeps printing while the host does not read: the lines pile up."""
+    data = b''.join(rig.emu.tick() for _ in range(int(round(seconds / rig.emu.params.period))))
+    return rig.reader.feed(data)
+
+
+def test_a_host_stall_with_telemetry_waiting_writes_nothing_and_resumes_without_a_burst(
+        ) -> None:
+    rig = Rig()
+    rig.run(0.05)
+    rig.bridge.set_grasp_force(10.0, rig.t)
+    rig.run(1.5)
+    before = rig.voltages()[-1]
+    assert before < -2.0 and rig.emu.grasp_force == pytest.approx(10.0, abs=0.3)
+    t_last = rig.t
+    n = len(rig.writes)
+    for stall in (0.06, 0.3):
+        lines = _backlog(rig, stall)
+        # The watchdog runs meanwhile: the lines wait at the port, so the device is fine.
+        for dt in (0.025, 0.1, stall - 0.001):
+            result = rig.bridge.check_watchdog(t_last + dt, input_pending=lambda: 7 * 50)
+            assert result.state == LinkState.LAGGING and not result.disarmed
+        assert rig.writes[n:] == []  # no safe voltage: the last command stays applied
+        assert rig.bridge.status(t_last + stall).link_ok
+        assert rig.bridge.diagnostics(t_last + stall).link_state == LinkState.LAGGING
+        results = rig.bridge.on_lines(lines, rig.t)
+        commands = [r.command for r in results if r.command is not None]
+        assert len(commands) == 1 and len(results) == len(lines) > 25  # no catch-up burst
+        assert [r.event for r in results if r.event] == ['host_stall']
+        stamps = [r.stamp for r in results]
+        assert stamps == sorted(stamps) and stamps[-1] == rig.t  # one period apart, newest now
+        assert stamps[-1] - stamps[0] == pytest.approx(stall - 0.002, abs=1e-9)
+        assert command_voltage(commands[0]) == pytest.approx(before, abs=0.02)  # from applied
+        rig.run(0.5)
+        motors = [r.motor for r in telemetry(rig.run(0.5)) if r.motor is not None]
+        assert max(m.force_cmd for m in motors) < 10.0 + 1.0  # no catch-up kick
+        assert rig.emu.grasp_force == pytest.approx(10.0, abs=0.3)
+        t_last = rig.t
+        n = len(rig.writes)
+    diag = rig.bridge.diagnostics(rig.t)
+    assert diag.host_stalls == 2 and diag.max_host_stall_s == pytest.approx(0.3, abs=0.01)
+    assert diag.stale_events == 0 and diag.link_faults == 0 and diag.armed
+    assert set(rig.writes) <= {w for w in rig.writes if command_voltage(w) != 0.0} | {
+        b'\nT0.00\n', b'T0.00\n'}
+
+
+def test_a_silent_device_goes_stale_then_resumes_rate_limited_from_the_applied_value() -> None:
+    rig = Rig()
+    rig.run(0.05)
+    rig.bridge.set_grasp_force(10.0, rig.t)
+    rig.run(1.5)
+    t_last = rig.t
+    rig.emu.silence(0.1)  # the device itself stops: nothing waits at the port
+    n = len(rig.writes)
+    result = rig.bridge.check_watchdog(t_last + 0.025, input_pending=lambda: 0)
+    assert result.state == LinkState.STALE and not result.disarmed
+    assert rig.writes[n:] == [b'T0.00\n'] and rig.bridge.status(rig.t).armed
+    results = telemetry(rig.run(0.4))  # the pads relax at 0 V until telemetry resumes
+    motors = [r.motor for r in results if r.motor is not None]
+    assert motors[0].stamp - t_last > 0.1
+    rate = rig.bridge.params.link.resume_rate
+    t0 = motors[0].stamp
+    assert motors[0].force_cmd == 0.0  # resumes from the value applied (the safe voltage)
+    for m in motors:  # ... at most resume_rate N/s
+        assert m.force_cmd <= rate * (m.stamp - t0) + 1e-9
+    # No kick: the command follows the ramp, then the loop's own correction stays close to
+    # the target (11.3 N here; 12.7 N with the ramp off).
+    assert max(m.force_cmd for m in motors) < 10.0 + 2.0
+    rig.run(1.0)
+    assert rig.emu.grasp_force == pytest.approx(10.0, abs=0.3)
+    assert rig.bridge.diagnostics(rig.t).resume_ramps == 1
+
+
+def test_a_host_stall_beyond_the_limit_disarms() -> None:
+    rig = Rig()
+    rig.run(0.05)
+    rig.bridge.set_grasp_force(10.0, rig.t)
+    rig.run(1.0)
+    t_last = rig.t
+    limit = rig.bridge.params.link.host_stall_limit
+    n = len(rig.writes)
+    result = rig.bridge.check_watchdog(t_last + limit + 0.01, input_pending=lambda: 4000)
+    assert result.state == LinkState.LAGGING and result.disarmed and 'stalled' in result.reason
+    assert rig.writes[n:] == [b'T0.00\n'] and not rig.bridge.status(rig.t).armed
+    assert not rig.bridge.check_watchdog(t_last + limit + 0.02, lambda: 4000).disarmed  # once
+
+
+# ---------------------------------------------------------------------------- firmware
+def test_a_real_firmware_reset_is_counted_as_a_restart_after_the_link_reconnected() -> None:
+    """Issue 17 item 5: ~5.7 s of silence (the link faults and reconnects first), then only
+    'Voltage control' and angles from a non-zero first angle."""
+    rig = Rig(model=GripperModelParams())
+    rig.run(0.05)
+    rig.bridge.start_homing(rig.t)
+    rig.run(6.0)
+    assert rig.bridge.status(rig.t).homed
+    rig.emu.restart()  # the real boot time
+    t_reset = rig.t
+    rig.run(0.3)
+    fault = rig.bridge.check_watchdog(rig.t, input_pending=lambda: 0)
+    assert fault.state == LinkState.FAULT and fault.reconnect
+    rig.bridge.on_link_lost(rig.t, 'dropped for reconnection')
+    rig.bridge.on_connected(rig.t + 0.5, 'emulated')  # reopened while the firmware boots
+    results = rig.run(6.0)
+    events = [r.event for r in results if r.event]
+    assert events == ['firmware_restart']
+    first = next(r for r in results if r.status is not None)
+    assert first.stamp - t_reset == pytest.approx(rig.emu.params.boot_time, abs=0.01)
+    assert first.status.motor_angle != 0.0
+    diag = rig.bridge.diagnostics(rig.t)
+    assert diag.firmware_restarts == 1 and diag.reconnects == 1
+    assert diag.safe_reason == 'firmware restart detected'
+    status = rig.bridge.status(rig.t)
+    assert not status.armed and not status.homed and status.link_ok
+
+
+def test_every_write_is_one_complete_command_and_a_connection_flushes_a_fragment() -> None:
+    rig = Rig()
+    rig.emu.receive(b'T-2.')  # a previous host died in the middle of a command
+    rig.bridge.on_connected(0.0, 'emulated')  # reconnection: newline + safe voltage, one write
+    assert rig.writes[-1] == b'\nT0.00\n' and rig.emu.target_voltage_v == 0.0
+    rig.run(0.05)
+    rig.bridge.set_grasp_force(10.0, rig.t)
+    rig.run(1.0)
+    rig.bridge.set_grasp_force(-8.0, rig.t)
+    rig.run(0.5)
+    command = re.compile(rb'\n?T-?[0-9]{1,2}\.[0-9]{2}\n')
+    assert all(command.fullmatch(w) for w in rig.writes) and len(rig.writes) > 500
+    # Only the stale fragment of the previous host ever reached the firmware malformed.
+    assert rig.emu.malformed_commands == 1 and rig.emu.nonfinite_commands == 0

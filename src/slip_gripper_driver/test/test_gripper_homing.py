@@ -6,9 +6,11 @@ import math
 
 import pytest
 
-from slip_gripper_driver.core.bridge import BridgeParams, GripperBridge
+from slip_gripper_driver.core.bridge import GripperBridge
+from slip_gripper_driver.core.bridge_params import BridgeParams
 from slip_gripper_driver.core.firmware_emulator import FirmwareEmulator, GripperModelParams
-from slip_gripper_driver.core.homing import (Homing, HomingParams, HomingPhase, homing_refusal)
+from slip_gripper_driver.core.homing import (Homing, HomingParams, HomingPhase, HomingResult,
+                                             homing_refusal)
 from slip_cell_common.core.serial_transport import LineReader
 
 K_OPEN = 0.0086751614
@@ -155,3 +157,25 @@ def test_homing_refused_while_contact_or_squeeze_command() -> None:
     assert bridge.set_grasp_force(5.0, t).accepted
     result = bridge.start_homing(t)
     assert not result.accepted and 'release' in result.reason
+
+
+def test_known_limits_are_adopted_under_the_same_refusals() -> None:
+    emu = FirmwareEmulator(GripperModelParams())
+    bridge = _bridge(emu, BridgeParams())
+    t = emu.time_s
+    wrench = (0.0, 0.0, -3.0, 0.0, 0.0, 0.0)     # bias-removed, squeezing: contact
+    for finger in (1, 2):
+        bridge.on_ft_wrench(finger, t, wrench)
+    limits = HomingResult(theta_closed=-9.0, theta_open=-9.0 + 0.08 / K_OPEN, stroke=0.08)
+    result = bridge.adopt_homing(t, limits)
+    assert not result.accepted and 'contact' in result.reason and not bridge.homing.homed
+    for finger in (1, 2):
+        bridge.on_ft_wrench(finger, t, (0.0,) * 6)
+    result = bridge.adopt_homing(t, limits)
+    assert result.accepted and 'stroke 80.00 mm' in result.reason
+    assert bridge.homing.homed and bridge.homing.result == limits
+    status = bridge.status(t)
+    assert status.homed and status.opening == pytest.approx((status.motor_angle + 9.0) * K_OPEN)
+    # An unbiased sensor (None) leaves the grasp force unmeasured.
+    bridge.on_ft_wrench(1, t, None)
+    assert math.isnan(bridge.status(t).measured_grasp_force) and not bridge.status(t).ft_biased

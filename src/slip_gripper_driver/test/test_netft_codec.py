@@ -9,12 +9,19 @@ import numpy as np
 import pytest
 
 from slip_cell_common.core.monitors import Level
-from slip_gripper_driver.core.netft import (RECORD_SIZE, BiasAccumulator, BiasParams, BiasState,
-                                            DatagramError, ForceTorqueScale, FtParams,
-                                            RdtCommand, SequenceTracker, SeqVerdict,
-                                            decode_datagram, decode_request, decode_status,
-                                            encode_record, encode_request, force_unit_factor,
-                                            parse_netft_config, torque_unit_factor)
+from slip_gripper_driver.core.ft_bias import BiasAccumulator, BiasParams, BiasState
+from slip_gripper_driver.core.ft_scale import (ForceTorqueScale, force_unit_factor,
+                                               torque_unit_factor)
+from slip_gripper_driver.core.netft_config import parse_netft_config
+from slip_gripper_driver.core.ft_validity import (UNCHECKED, RecordFlaw, merge_limits,
+                                                  record_flaw)
+from slip_gripper_driver.core.netft_params import (FtFinger1Params, FtFinger2Params, FtParams,
+                                                   FtRangeParams, FtStreamParams)
+from slip_gripper_driver.core.netft_status import decode_status, is_error_status
+from slip_gripper_driver.core.rdt_codec import (RECORD_SIZE, DatagramError, RdtCommand,
+                                                decode_datagram, decode_request, encode_record,
+                                                encode_request)
+from slip_gripper_driver.core.rdt_sequence import SeqVerdict, SequenceTracker
 from slip_cell_common.core.param_schema import ParameterError, flatten
 
 
@@ -69,13 +76,64 @@ def test_sequence_tracker_loss_duplicates_reorder_and_wrap() -> None:
     assert tr.ft_stalls == 0 and tr.ft_restarts == 0
 
 
-def test_sequence_tracker_resyncs_after_a_box_restart() -> None:
+def test_sequence_tracker_resyncs_when_the_numbering_jumps_back_without_a_new_stream() -> None:
     tr = SequenceTracker(resync_after=4)
     for s in range(1000, 1010):
         tr.update(s, s)
-    verdicts = [tr.update(s, s) for s in range(0, 6)]  # the box restarted its counters
+    verdicts = [tr.update(s, 2000 + s) for s in range(500, 506)]  # not 1, no start request
     assert verdicts[:3] == [SeqVerdict.OLD] * 3 and verdicts[3] == SeqVerdict.RESYNC
     assert verdicts[4:] == [SeqVerdict.NEW] * 2 and tr.resyncs == 1 and tr.lost == 0
+    assert tr.new_streams == 0 and tr.ft_restarts == 0
+
+
+def test_a_new_stream_numbered_from_1_is_accepted_at_once() -> None:
+    """Real box: every start request restarts rdt_sequence at 1 (ft_sequence continues)."""
+    tr = SequenceTracker()
+    tr.expect_new_stream()
+    assert [tr.update(s, 100 + s) for s in (1, 2, 3)] == \
+        [SeqVerdict.FIRST, SeqVerdict.NEW, SeqVerdict.NEW]
+    for s in range(4, 5000):
+        tr.update(s, 100 + s)
+    # A start request re-sent (silence, device bias): the next stream starts at 1 again.
+    tr.expect_new_stream()
+    assert tr.update(4999 + 1, 5100) == SeqVerdict.NEW  # still in flight from the old one
+    assert [tr.update(s, 5200 + s) for s in (1, 2, 3)] == \
+        [SeqVerdict.NEW_STREAM, SeqVerdict.NEW, SeqVerdict.NEW]
+    # A new stream whose first two records were lost, after a start request.
+    tr.expect_new_stream()
+    assert tr.update(3, 9000) == SeqVerdict.NEW_STREAM
+    # Record 1 opens a stream even without a known start request (another start elsewhere).
+    for s in range(4, 100):
+        tr.update(s, 9000 + s)
+    assert tr.update(1, 9200) == SeqVerdict.NEW_STREAM
+    assert (tr.new_streams, tr.lost, tr.out_of_order, tr.resyncs) == (3, 2, 0, 0)
+    assert tr.ft_restarts == 0 and not tr.restarted
+
+
+def test_new_stream_across_the_wrap_and_late_records_within_a_stream() -> None:
+    tr = SequenceTracker()
+    for s in range(2**32 - 200, 2**32 - 100):
+        tr.update(s, s)
+    tr.expect_new_stream()
+    assert tr.update(2, 2**32 - 99) == SeqVerdict.NEW_STREAM  # looks "newer" across the wrap
+    assert tr.lost == 1
+    assert [tr.update(s, 2**32 - 99 + s) for s in (4, 3, 5)] == \
+        [SeqVerdict.NEW, SeqVerdict.OLD, SeqVerdict.NEW]  # 3 is late within the stream
+    assert tr.out_of_order == 1
+    # Without a start request, a short step across the wrap continues the stream (loss).
+    tr = SequenceTracker()
+    tr.update(2**32 - 2, 10)
+    assert tr.update(2, 11) == SeqVerdict.NEW and tr.lost == 3
+
+
+def test_device_restart_is_flagged_on_the_record_that_shows_it() -> None:
+    tr = SequenceTracker()
+    for s in range(1, 200):
+        tr.update(s, 7000 + s)
+    tr.expect_new_stream()
+    assert tr.update(1, 3) == SeqVerdict.NEW_STREAM and tr.restarted  # ft_sequence went back
+    assert tr.update(2, 4) == SeqVerdict.NEW and not tr.restarted
+    assert tr.ft_restarts == 1
 
 
 def test_ft_sequence_stalls_and_restarts() -> None:
@@ -97,6 +155,22 @@ def test_ft_sequence_stalls_and_restarts() -> None:
 def test_status_word_decoding(word: int, level: Level, text: str) -> None:
     info = decode_status(word)
     assert info.level == level and text in info.text
+    assert is_error_status(word) == (level == Level.ERROR)
+
+
+def test_record_flaws_status_and_measuring_range() -> None:
+    limits = merge_limits((0.0, 0.0, 100.0, 0.0, 0.0, 0.0), (40.0, 40.0, 120.0, 2.0, 2.0, 2.0))
+    assert limits == (40.0, 40.0, 100.0, 2.0, 2.0, 2.0)  # a parameter entry wins
+    assert merge_limits((0.0,) * 6, None) == UNCHECKED
+    ok = (1.0, -2.0, -99.0, 0.1, 0.0, -1.9)
+    assert record_flaw(0, ok, limits) == RecordFlaw.NONE
+    assert record_flaw(0x80010000, ok, limits) == RecordFlaw.NONE  # latched monitor: warning
+    assert record_flaw(0x80020000, ok, limits) == RecordFlaw.STATUS_ERROR
+    assert record_flaw(0, (1.0, -2.0, -100.5, 0.1, 0.0, 0.0), limits) == RecordFlaw.OUT_OF_RANGE
+    assert record_flaw(0, (0.0, 0.0, 0.0, 0.0, 2.1, 0.0), limits) == RecordFlaw.OUT_OF_RANGE
+    assert record_flaw(0, (1e9,) * 6, UNCHECKED) == RecordFlaw.NONE
+    with pytest.raises(ValueError):
+        merge_limits((0.0,) * 5, None)
 
 
 @pytest.mark.parametrize('unit, factor', [
@@ -143,6 +217,12 @@ def test_parse_netft_config() -> None:
     assert cfg.scale == ForceTorqueScale(1e6, 1e6, 'N', 'Nm')
     assert cfg.rdt_rate_hz == 1000.0 and cfg.rdt_enabled is True
     assert cfg.values['netip'] == '192.168.56.6' and cfg.values['cfgmr'] == '40;40;120;2;2;2'
+    assert cfg.measuring_range == (40.0, 40.0, 120.0, 2.0, 2.0, 2.0)
+    lbf = parse_netft_config(SAMPLE_XML.replace('<scfgfu>N</scfgfu>', '<scfgfu>lbf</scfgfu>'))
+    assert lbf.measuring_range is not None
+    assert lbf.measuring_range[2] == pytest.approx(120 * 4.4482216152605)
+    assert parse_netft_config(SAMPLE_XML.replace('40;40;120;2;2;2', '40;40')) \
+        .measuring_range is None
     with pytest.raises(ValueError, match='cfgcpt'):
         parse_netft_config(SAMPLE_XML.replace('<cfgcpt>1000000</cfgcpt>', ''))
     with pytest.raises(ValueError, match='not valid XML'):
@@ -177,12 +257,35 @@ def test_bias_accumulator_window_settle_and_min_samples() -> None:
 def test_ft_params_require_counts_without_config_read() -> None:
     FtParams().validate()
     with pytest.raises(ParameterError, match='required'):
-        FtParams(read_config=False).validate()
-    FtParams(read_config=False, counts_per_force=1e6, counts_per_torque=1e6).validate()
+        FtParams(stream=FtStreamParams(read_config=False)).validate()
+    with pytest.raises(ParameterError, match='required'):
+        FtStreamParams(read_config=False).validate()
+    FtStreamParams(read_config=False, counts_per_force=1e6, counts_per_torque=1e6).validate()
     with pytest.raises(ParameterError, match='unknown force unit'):
-        FtParams(force_unit='stone').validate()
+        FtParams(stream=FtStreamParams(force_unit='stone')).validate()
     flat = flatten(FtParams())
+    assert flat['read_config'] is True and flat['start_retries'] == 10
     assert flat['finger_1.address'] == '192.168.56.6'
     assert flat['finger_2.address'] == '192.168.56.5'
+    assert flat['http_port'] == 80 and flat['publish_on_error'] is False
+    assert flat['measuring_range.fz'] == 0.0 and flat['finger_2.port'] == 0
+    limits = FtStreamParams(measuring_range=FtRangeParams(fz=100.0)).measuring_range.limits()
+    assert merge_limits(limits, (40.0, 40.0, 120.0, 2.0, 2.0, 2.0)) == \
+        (40.0, 40.0, 100.0, 2.0, 2.0, 2.0)
+
+
+def test_per_box_ports_default_to_the_shared_ones() -> None:
+    ft = FtParams()
+    assert [tuple(b) for b in ft.boxes()] == [(1, '192.168.56.6', 49152, 80),
+                                               (2, '192.168.56.5', 49152, 80)]
+    two_on_one_host = FtParams(finger_1=FtFinger1Params('10.0.0.2', 50001, 8081),
+                               finger_2=FtFinger2Params('10.0.0.2', 50002, 8082),
+                               stream=FtStreamParams(http_port=8080))
+    two_on_one_host.validate()
+    assert [tuple(b) for b in two_on_one_host.boxes()] == [(1, '10.0.0.2', 50001, 8081),
+                                                            (2, '10.0.0.2', 50002, 8082)]
+    with pytest.raises(ParameterError, match='both boxes at 10.0.0.2:49152'):
+        FtParams(finger_1=FtFinger1Params('10.0.0.2'),
+                 finger_2=FtFinger2Params('10.0.0.2')).validate()
     BiasParams().validate()
     assert BiasParams().accumulator().min_samples == 50

@@ -3,7 +3,8 @@
 from __future__ import annotations
 
 import socket
-from typing import Any, Iterator
+from typing import Any
+from collections.abc import Iterator
 
 import pytest
 
@@ -125,3 +126,96 @@ def test_silent_box_fails_configure_naming_it(ros_context: Any) -> None:
             assert message in node.last_error
         finally:
             node.destroy_node()
+
+
+def test_error_records_and_a_reboot_in_device_bias_mode_never_reach_the_wrench_topic(
+        ros_context: Any, box: NetFTEmulator) -> None:
+    """Error-flagged records go to ft/raw only (publish_on_error); a reboot loses the device
+    bias: diagnostics ERROR 'bias lost after device restart', ft/wrench silent until biased."""
+    from diagnostic_msgs.msg import DiagnosticArray
+    from geometry_msgs.msg import WrenchStamped
+    from rclpy.executors import MultiThreadedExecutor, SingleThreadedExecutor
+    from rclpy.lifecycle import TransitionCallbackReturn
+    from rclpy.node import Node
+    from rclpy.qos import QoSProfile
+    from std_srvs.srv import Trigger
+
+    from slip_cell_common.node_main import shutdown_lifecycle
+    from slip_gripper_driver.netft_driver_node import NetFTDriverNode
+    from slip_cell_common.testing import SpinThread, call_service, spin_until
+
+    node = NetFTDriverNode(context=ros_context, parameter_overrides=overrides(
+        box.address[1], **{'bias.mode': 'device', 'publish_on_error': True,
+                           'publish_decimation': 1}))
+    executor = MultiThreadedExecutor(num_threads=2, context=ros_context)
+    executor.add_node(node)
+    spinner = SpinThread(executor).start()
+    probe = Node('probe', context=ros_context)
+    probe_exec = SingleThreadedExecutor(context=ros_context)
+    probe_exec.add_node(probe)
+    raw: list[WrenchStamped] = []
+    biased: list[WrenchStamped] = []
+    diags: list[DiagnosticArray] = []
+    probe.create_subscription(WrenchStamped, 'finger_2/ft/raw', raw.append,
+                              QoSProfile(depth=1000))
+    probe.create_subscription(WrenchStamped, 'finger_2/ft/wrench', biased.append,
+                              QoSProfile(depth=1000))
+    probe.create_subscription(DiagnosticArray, '/diagnostics', diags.append, 10)
+    client = probe.create_client(Trigger, 'finger_2/ft/bias')
+
+    def ft_status() -> Any:
+        return next((s for d in diags[-1:] for s in d.status if s.name == 'netft_driver: ft'),
+                    None)
+
+    def silent_while_raw_flows() -> None:
+        """ft/wrench gets nothing while ft/raw gets another 200 messages."""
+        assert spin_until(probe_exec, lambda: len(raw) > 50, TIMEOUT_S)
+        n_biased, n_raw = len(biased), len(raw)
+        assert spin_until(probe_exec, lambda: len(raw) >= n_raw + 200, TIMEOUT_S)
+        assert len(biased) == n_biased
+
+    try:
+        assert node.trigger_configure() == TransitionCallbackReturn.SUCCESS, node.last_error
+        assert node.trigger_activate() == TransitionCallbackReturn.SUCCESS
+        reply = call_service(probe_exec, client, Trigger.Request(), TIMEOUT_S)
+        assert reply is not None and reply.success, reply
+        assert box.biases == 1
+        assert spin_until(probe_exec, lambda: len(biased) > 100, TIMEOUT_S)
+
+        box.set_status(0x80020000)
+        assert spin_until(probe_exec, lambda: node.channel.health().status_errors > 50,
+                          TIMEOUT_S)
+        raw.clear()
+        silent_while_raw_flows()  # publish_on_error: on ft/raw, never on ft/wrench
+        assert spin_until(probe_exec, lambda: ft_status() is not None
+                          and 'records dropped' in ft_status().message, 5.0)
+        assert ft_status().level == b'\x02'
+        box.set_status(0)
+        n = len(biased)
+        assert spin_until(probe_exec, lambda: len(biased) > n + 100, TIMEOUT_S)
+
+        box.reboot()  # the device bias is gone; the readings jump by the tare (+2.5 N)
+        assert spin_until(probe_exec, lambda: node.channel.bias_lost, TIMEOUT_S)
+        raw.clear()
+        silent_while_raw_flows()
+        assert raw[-1].wrench.force.z == pytest.approx(OFFSET_FZ, abs=0.1)
+        assert spin_until(probe_exec, lambda: ft_status() is not None
+                          and 'bias lost after device restart' in ft_status().message, 5.0)
+        values = {kv.key: kv.value for kv in ft_status().values}
+        assert ft_status().level == b'\x02' and values['biased'] == 'false'
+        assert values['device_restarts'] == '1'
+
+        reply = call_service(probe_exec, client, Trigger.Request(), TIMEOUT_S)  # unloaded
+        assert reply is not None and reply.success, reply
+        n = len(biased)
+        assert spin_until(probe_exec, lambda: len(biased) > n + 100, TIMEOUT_S)
+        recent = biased[-50:]
+        assert sum(w.wrench.force.z for w in recent) / 50 == pytest.approx(0.0, abs=0.05)
+        assert not node.channel.bias_lost
+    finally:
+        shutdown_lifecycle(node)
+        spinner.stop()
+        executor.shutdown()
+        probe_exec.shutdown()
+        node.destroy_node()
+        probe.destroy_node()

@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: Apache-2.0
-"""Command-line tool for the velocity-sensor calibration (hardware_protocols spec §3.7).
+"""Command-line tool for the velocity-sensor calibration (hardware_protocols §3.7).
 
 Sub-commands::
 
@@ -24,10 +24,12 @@ import re
 import sys
 from dataclasses import replace
 from pathlib import Path
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 
+from slip_cell_common.core import names
+from slip_cell_common.core.cli_args import Parser, non_negative_int, plain_doc, positive_float
 from slip_velocity_sensor.core import calibration as cal_mod
 from slip_velocity_sensor.core.calibration import (AxisCalibration, ChipCalibration,
                                                    SensorCalibration)
@@ -128,8 +130,9 @@ def write_bag_recording(path: Path, t: np.ndarray, v: np.ndarray, chip: int, axi
         finger: Finger of the topic name.
     """
     from slip_cell_common.bag_io import BagWriter
+    from slip_cell_common.time_conv import seconds_to_nanoseconds, split_nanoseconds
 
-    topic = f'/finger_{finger}/slip/chips'
+    topic = names.absolute(names.slip_chips(finger))
     msgtype = 'slip_msgs/msg/OpticalChipArray'
     with BagWriter(path) as writer:
         types = writer.typestore.types
@@ -142,9 +145,11 @@ def write_bag_recording(path: Path, t: np.ndarray, v: np.ndarray, chip: int, axi
             (vx if axis == 'x' else vy)[chip - 1] = v_k
             synced = np.zeros(3, dtype=bool)
             synced[chip - 1] = True
-            ns = int(round(float(t_k) * 1e9))
-            stamp = types['builtin_interfaces/msg/Time'](sec=ns // 10**9, nanosec=ns % 10**9)
-            header = types['std_msgs/msg/Header'](stamp=stamp, frame_id=f'vel_sensor_{finger}')
+            ns = seconds_to_nanoseconds(float(t_k))
+            sec, nanosec = split_nanoseconds(ns)
+            stamp = types['builtin_interfaces/msg/Time'](sec=sec, nanosec=nanosec)
+            header = types['std_msgs/msg/Header'](stamp=stamp,
+                                                  frame_id=names.vel_sensor_frame(finger))
             msg = types[msgtype](header=header, chip_mode=chip, dx=zeros, dy=zeros,
                                  dt=float(t_k) - prev,
                                  vx=vx, vy=vy, calibrated=False, synced=synced)
@@ -183,7 +188,7 @@ def read_table(path: Path) -> dict[int, SensorCalibration]:
         chips = tuple(ChipCalibration(x=axes[(c, 'x')], y=axes[(c, 'y')]) for c in CHIPS)
         out[sensor] = SensorCalibration(
             sensor=f'sensor_{sensor}', radius=radius[sensor], chips=chips,
-            source=f'reference table {path.name} (hardware_protocols spec §3.6)')
+            source=f'reference table {path.name} (hardware_protocols §3.6)')
     return out
 
 
@@ -341,44 +346,53 @@ def _synth_command(args: argparse.Namespace) -> int:
     return 0
 
 
-def _positive(text: str) -> float:
-    value = float(text)
-    if not (math.isfinite(value) and value > 0.0):
-        raise argparse.ArgumentTypeError(f'must be a positive number, got {text!r}')
-    return value
-
-
-def build_parser() -> argparse.ArgumentParser:
+def build_parser() -> Parser:
     """Argument parser of the tool."""
-    parser = argparse.ArgumentParser(prog='calibration_fit', description=__doc__.split('\n')[0])
-    sub = parser.add_subparsers(dest='command', required=True)
-    fit = sub.add_parser('fit', help='fit recordings and write calibration files')
+    parser = Parser(prog='calibration_fit', description=plain_doc(__doc__))
+    sub = parser.add_subparsers(dest='command', metavar='COMMAND', required=True,
+                                help='step of the procedure (COMMAND --help for its options)')
+    fit = sub.add_parser('fit', help='fit recordings and write calibration files',
+                         description='Fit the 12 recordings Sensor<N>chip<k><x|y> and write, '
+                                     'per sensor, calibration_sensor_<N>.yaml, a report plot '
+                                     'and a residual table.')
     fit.add_argument('recordings',
                      help='directory with Sensor<N>chip<k><x|y>.csv files or bag directories')
     fit.add_argument('--topic', default='',
-                     help='chips topic in the bags (default: the one with the chip\'s samples)')
-    fit.add_argument('--out-dir', required=True)
+                     help="chips topic in the bags (default: the one with the chip's samples)")
+    fit.add_argument('--out-dir', required=True, metavar='DIR',
+                     help='directory for the calibration files, plots and tables (required)')
     fit.add_argument('--model', choices=FIT_MODELS, default='abs',
-                     help='speed term of the fit (abs: symmetric; signed: reference)')
-    fit.add_argument('--a-factor', type=float, default=1.0,
-                     help='hand factor on a (the reference used 0.88); default: raw fit')
+                     help='speed term of the fit (abs: symmetric in the speed; signed: as the '
+                          'reference; none: no speed term, a constant scale)')
+    fit.add_argument('--a-factor', type=positive_float, default=1.0,
+                     help='hand factor on a (the reference used 0.88; 1.0 keeps the raw fit)')
     fit.add_argument('--zero-x-a', action='store_true',
                      help='set the x-axis a to 0 (as the reference did by hand)')
-    fit.add_argument('--distance', type=_positive, default=0.1, help='stop-to-stop [m]')
-    fit.add_argument('--radius', type=_positive, default=0.0243,
+    fit.add_argument('--distance', type=positive_float, default=0.1,
+                     help='stop-to-stop distance of each recording [m]')
+    fit.add_argument('--radius', type=positive_float, default=0.0243,
                      help='chip radius written to the files [m]')
     fit.add_argument('--no-plot', action='store_true', help='skip the PNG report')
     fit.set_defaults(func=_fit_command)
-    table = sub.add_parser('from-table', help='calibration files from the reference table')
-    table.add_argument('table', help='velocity_sensor_calibration.csv')
-    table.add_argument('--out-dir', required=True)
+    table = sub.add_parser('from-table', help='calibration files from the reference table',
+                           description='Write calibration_sensor_<N>.yaml files from the '
+                                       'reference table (velocity_sensor_calibration.csv).')
+    table.add_argument('table', help='the reference table, velocity_sensor_calibration.csv')
+    table.add_argument('--out-dir', required=True, metavar='DIR',
+                       help='directory for the calibration files (required)')
     table.set_defaults(func=_from_table_command)
-    synth = sub.add_parser('synth', help='synthetic procedure recordings')
-    synth.add_argument('out_dir')
-    synth.add_argument('--truth-table', default='', help='true calibration table (CSV)')
+    synth = sub.add_parser('synth', help='synthetic procedure recordings',
+                           description='Write 12 synthetic recordings of the procedure, to try '
+                                       'the tool without hardware.')
+    synth.add_argument('out_dir', help='directory for the recordings (created)')
+    synth.add_argument('--truth-table', default='',
+                       help='true calibration table (CSV) to synthesise from (default: the '
+                            'nominal calibration of both sensors)')
     synth.add_argument('--profile', default='trapezoid',
-                       choices=('constant', 'trapezoid', 'minimum_jerk'))
-    synth.add_argument('--seed', type=int, default=0)
+                       choices=('constant', 'trapezoid', 'minimum_jerk'),
+                       help='speed profile of each synthetic stroke')
+    synth.add_argument('--seed', type=non_negative_int, default=0,
+                       help='seed of the synthetic noise')
     synth.add_argument('--format', choices=('csv', 'bag'), default='csv',
                        help='CSV files or bags like calibration_recorder writes')
     synth.set_defaults(func=_synth_command)

@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: Apache-2.0
 """``calibration_recorder``: run the stop-to-stop procedure and record it to bags.
 
-Procedure (hardware_protocols spec §3.7), per chip and axis of one sensor, with the
+Procedure (hardware_protocols §3.7), per chip and axis of one sensor, with the
 ``velocity_sensor`` node of that finger running::
 
     calibration_recorder --finger 1 --chips 1 2 3 --axes x y --output-dir calib/
@@ -24,7 +24,8 @@ import argparse
 import itertools
 import sys
 from pathlib import Path
-from typing import Any, Callable, Sequence
+from typing import Any
+from collections.abc import Callable, Sequence
 
 import rclpy
 from rclpy.context import Context
@@ -36,7 +37,9 @@ from slip_msgs.srv import SetChipMode
 
 from slip_cell_common.bag_io import bag_info
 from slip_cell_common.calls import call_service, spin_until
+from slip_cell_common.core import names
 from slip_cell_common.recorder import TopicRecorder
+from slip_cell_common.time_conv import clock_seconds
 from slip_velocity_sensor.core.procedure import (ProcedureParams, prompt_schedule, schedule,
                                                  scaled)
 
@@ -75,13 +78,13 @@ class CalibrationRecorder:
         self.say = say
         self.service_timeout = service_timeout
         self.warn_before = warn_before
-        base = f'finger_{finger}/slip'
+        base = names.slip_base(finger)
         self.topics = {name: node.resolve_topic_name(f'{base}/{name}') for name in RECORDED}
-        self.service_name = node.resolve_topic_name(f'{base}/set_chip_mode')
-        self._client = node.create_client(SetChipMode, f'{base}/set_chip_mode')
+        self.service_name = node.resolve_topic_name(names.slip_set_chip_mode_srv(finger))
+        self._client = node.create_client(SetChipMode, names.slip_set_chip_mode_srv(finger))
 
     def _now(self) -> float:
-        return self.node.get_clock().now().nanoseconds * 1e-9
+        return clock_seconds(self.node.get_clock())
 
     def set_chip_mode(self, chip: int) -> None:
         """Call the chip-mode service; raises `RecorderError` unless it succeeded."""
@@ -121,7 +124,11 @@ class CalibrationRecorder:
         steps = schedule(self.procedure)
         t0 = self._now()
         for prompt in prompt_schedule(steps, self.warn_before):
-            spin_until(self.executor, lambda t=prompt.t: self._now() - t0 >= t, prompt.t + 60.0)
+
+            def due(t: float = prompt.t) -> bool:
+                return self._now() - t0 >= t
+
+            spin_until(self.executor, due, prompt.t + 60.0)
             self.say(f'[{prompt.t:6.1f} s] {prompt.text}')
 
 

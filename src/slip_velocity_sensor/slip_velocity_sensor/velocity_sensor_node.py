@@ -13,14 +13,19 @@ Transitions (house_style §3):
   absolute, ``package://pkg/path`` or relative to this package's share directory; '' selects
   the inline ``calibration.chip_*`` values), open the port,
   identify with timeout and retries, upload the calibration and the chip mode, claim the sensor
-  name host-wide. Any failure returns FAILURE with a message naming the port (also on
-  ``/diagnostics``); nothing stays open.
-* **activate**: publish. The serial reader already runs from configure on (the handshake needs
-  it), so board restarts and unplugging are handled and diagnosed in the inactive state too,
-  and the pose keeps integrating (it is the displacement since the last reset). The services
-  work in both configured states.
-* **deactivate**: stop publishing. **cleanup / shutdown / error**: stop the reader and the
-  supervisor, close the port, release the name.
+  name host-wide. Invalid parameters or calibration, a wrong sensor name and a name claimed by
+  another port return FAILURE with a message naming the port (also on ``/diagnostics``);
+  nothing stays open. A start that may succeed later (port missing or busy, sensor silent or
+  re-syncing, link failure) is logged and configure succeeds without the sensor.
+* **activate**: publish. If the sensor has not started, the start is retried on a thread with
+  back-off (``reconnect.initial_delay`` doubling up to ``reconnect.max_delay``), every failure
+  logged and reported on ``/diagnostics`` (link ERROR), until it starts or the node is
+  deactivated (`core.starter.DriverStarter`). The serial reader runs from the start on (the
+  handshake needs it), so board restarts and unplugging are handled and diagnosed in the
+  inactive state too, and the pose keeps integrating (it is the displacement since the last
+  reset). The services work in both configured states.
+* **deactivate**: stop publishing and stop start retries. **cleanup / shutdown / error**: stop
+  the retries, the reader and the supervisor, close the port, release the name.
 
 Topics (``k`` = ``finger``; SENSOR_PUB, QoS overridable from YAML), stamped with the node clock
 when the line arrived and published from the reader thread:
@@ -37,6 +42,7 @@ hardware id. All device logic is in `slip_velocity_sensor.core.driver`.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import sys
 from typing import Any
@@ -50,17 +56,21 @@ from slip_msgs.srv import SetChipMode
 from std_srvs.srv import Trigger
 
 from slip_cell_common.diagnostics import DiagnosticsPublisher
+from slip_cell_common.time_conv import clock_seconds, nanoseconds_to_seconds
+from slip_cell_common.core import names
 from slip_cell_common.node_main import run_node
 from slip_cell_common.param_binding import ParameterBinding
 from slip_cell_common.qos import SENSOR_PUB, overridable
 from slip_cell_common.core.monitors import Level, Report
 from slip_cell_common.core.param_schema import ParameterError
-from slip_velocity_sensor import ros_conv
+from slip_velocity_sensor.velocity_msgs_conv import chip_array_msg, planar_slip_msg, twist_msg
 from slip_velocity_sensor.core import protocol
 from slip_velocity_sensor.core.calibration import CalibrationError, resolve_calibration
 from slip_velocity_sensor.core.driver import DriverError, SensorDriver
+from slip_velocity_sensor.core.handshake import HandshakeResult
 from slip_velocity_sensor.core.params import VelocitySensorParams
 from slip_velocity_sensor.core.session import Sample
+from slip_velocity_sensor.core.starter import DriverStarter
 from slip_velocity_sensor.resources import ResourceError, resolve_path
 
 DIAGNOSTIC_TASKS = ('link', 'rate', 'chips', 'calibration')
@@ -80,9 +90,10 @@ class VelocitySensorNode(LifecycleNode):
         self._binding.on_change(self._on_params_changed)
         self._diagnostics = DiagnosticsPublisher(self)
         for task in DIAGNOSTIC_TASKS:
-            self._diagnostics.add(task, lambda now, task=task: self._report(task, now))
+            self._diagnostics.add(task, functools.partial(self._report, task))
         self._cfg: VelocitySensorParams | None = None
         self._driver: SensorDriver | None = None
+        self._starter: DriverStarter | None = None
         self._frame_id = ''
         self._active = False
         self._last_error = ''
@@ -90,7 +101,7 @@ class VelocitySensorNode(LifecycleNode):
         self._twist_pub: Any = None
         self._state_pub: Any = None
         self._chips_pub: Any = None
-        self._services: list[Any] = []
+        self._service_handles: list[Any] = []
         self._stale_timer: Any = None
         self._jump_handle: Any = None
 
@@ -98,7 +109,7 @@ class VelocitySensorNode(LifecycleNode):
 
     @property
     def last_error(self) -> str:
-        """Why the last configure failed ('' after a successful one)."""
+        """Why the last configure or start attempt failed ('' once the sensor started)."""
         return self._last_error
 
     @property
@@ -125,34 +136,57 @@ class VelocitySensorNode(LifecycleNode):
         self._cfg = cfg
         self._frame_id = cfg.resolved_frame_id
         self._create_endpoints(cfg)
-        driver = SensorDriver(cfg, calibration, clock=self._now_s, on_sample=self._on_sample,
-                              on_event=self._on_driver_event)
+
+        def make_driver() -> SensorDriver:
+            return SensorDriver(cfg, calibration, clock=self._now_s, on_sample=self._on_sample,
+                                on_event=self._on_driver_event)
+        driver = make_driver()
         try:
             result = driver.connect()
         except DriverError as exc:
-            self._destroy_endpoints()
-            self._cfg = None
-            return self._fail(str(exc))
-        self._driver = driver
-        self._last_error = ''
-        self._jump_handle = self.get_clock().create_jump_callback(
-            JumpThreshold(min_forward=None, min_backward=Duration(nanoseconds=-1_000_000),
-                          on_clock_change=True), post_callback=self._on_clock_jump)
-        self.get_logger().info(
-            f'{cfg.port}: {result.name} identified (attempt {result.attempts}), calibration '
-            f'uploaded from {calibration.source} (speed_term {cfg.calibration.speed_term}); '
-            f'frame {self._frame_id}')
+            if not exc.retryable:  # wrong name, name taken: retrying cannot help
+                self._destroy_endpoints()
+                self._cfg = None
+                return self._fail(str(exc))
+            self._starter = DriverStarter(cfg.port, make_driver, cfg.reconnect,
+                                          on_started=self._on_driver_started,
+                                          on_event=self._on_driver_event)
+            self._starter.record_failure(exc)
+            self._last_error = str(exc)
+            self.get_logger().error(
+                f'start failed: {exc}; configured without the sensor: the start is retried '
+                f'with back-off ({cfg.reconnect.initial_delay:g} s doubling up to '
+                f'{cfg.reconnect.max_delay:g} s) while the node is active')
+            return TransitionCallbackReturn.SUCCESS
+        self._on_driver_started(driver, result)
         return TransitionCallbackReturn.SUCCESS
 
     def on_activate(self, state: LifecycleState) -> TransitionCallbackReturn:
-        """Start publishing."""
+        """Start publishing; retry a failed start with back-off until deactivated."""
         self._prev_stamp = math.nan
         self._active = True
+        starter = self._starter
+        if self._driver is None and starter is not None:
+            status = starter.status()
+            if status.gave_up:
+                self.get_logger().error(
+                    f'{starter.port}: sensor not started and not retried: {status.last_error}')
+            else:
+                self.get_logger().warning(
+                    f'{starter.port}: sensor not started ({status.attempts} attempt(s) '
+                    'failed); retrying with back-off until deactivated')
+                starter.start()
         return super().on_activate(state)
 
     def on_deactivate(self, state: LifecycleState) -> TransitionCallbackReturn:
-        """Stop publishing (the port stays open and supervised)."""
+        """Stop publishing (the port stays open and supervised); stop start retries."""
         self._active = False
+        starter = self._starter
+        if starter is not None and starter.status().running:
+            starter.stop()
+            if self._driver is None:
+                self.get_logger().warning(
+                    f'{starter.port}: start retries stopped (inactive); activate to resume')
         return super().on_deactivate(state)
 
     def on_cleanup(self, state: LifecycleState) -> TransitionCallbackReturn:
@@ -182,7 +216,7 @@ class VelocitySensorNode(LifecycleNode):
     # ---------------------------------------------------------------- internals
 
     def _now_s(self) -> float:
-        return self.get_clock().now().nanoseconds * 1e-9
+        return clock_seconds(self.get_clock())
 
     def _fail(self, message: str) -> TransitionCallbackReturn:
         self._last_error = message
@@ -190,25 +224,27 @@ class VelocitySensorNode(LifecycleNode):
         return TransitionCallbackReturn.FAILURE
 
     def _create_endpoints(self, cfg: VelocitySensorParams) -> None:
-        base = f'finger_{cfg.finger}/slip'
+        k = cfg.finger
         self._twist_pub = self.create_lifecycle_publisher(
-            TwistStamped, f'{base}/twist', SENSOR_PUB, qos_overriding_options=overridable())
+            TwistStamped, names.slip_twist(k), SENSOR_PUB, qos_overriding_options=overridable())
         self._state_pub = self.create_lifecycle_publisher(
-            PlanarSlip, f'{base}/state', SENSOR_PUB, qos_overriding_options=overridable())
+            PlanarSlip, names.slip_state(k), SENSOR_PUB, qos_overriding_options=overridable())
         self._chips_pub = self.create_lifecycle_publisher(
-            OpticalChipArray, f'{base}/chips', SENSOR_PUB, qos_overriding_options=overridable())
-        self._services = [
-            self.create_service(SetChipMode, f'{base}/set_chip_mode', self._on_set_chip_mode),
-            self.create_service(Trigger, f'{base}/reset_pose', self._on_reset_pose)]
-        self._stale_timer = self.create_timer(cfg.stale_after, self._check_stale)
+            OpticalChipArray, names.slip_chips(k), SENSOR_PUB,
+            qos_overriding_options=overridable())
+        self._service_handles = [
+            self.create_service(SetChipMode, names.slip_set_chip_mode_srv(k),
+                                self._on_set_chip_mode),
+            self.create_service(Trigger, names.slip_reset_pose_srv(k), self._on_reset_pose)]
+        self._stale_timer = self.create_timer(cfg.session.stale_after, self._check_stale)
 
     def _destroy_endpoints(self) -> None:
         if self._stale_timer is not None:
             self.destroy_timer(self._stale_timer)
             self._stale_timer = None
-        for service in self._services:
+        for service in self._service_handles:
             self.destroy_service(service)
-        self._services = []
+        self._service_handles = []
         for name in ('_twist_pub', '_state_pub', '_chips_pub'):
             pub = getattr(self, name)
             if pub is not None:
@@ -217,6 +253,9 @@ class VelocitySensorNode(LifecycleNode):
 
     def _teardown(self) -> None:
         self._active = False
+        starter, self._starter = self._starter, None
+        if starter is not None:
+            starter.stop()  # joins: no driver is handed over after this
         if self._jump_handle is not None:
             self._jump_handle.unregister()
             self._jump_handle = None
@@ -238,11 +277,10 @@ class VelocitySensorNode(LifecycleNode):
         if state_pub is None or driver is None:
             return
         if sample.valid:
-            twist_pub.publish(ros_conv.twist_msg(sample, self._frame_id))
-        state_pub.publish(ros_conv.planar_slip_msg(sample, self._frame_id,
-                                                   driver.requested_chip_mode))
+            twist_pub.publish(twist_msg(sample, self._frame_id))
+        state_pub.publish(planar_slip_msg(sample, self._frame_id, driver.requested_chip_mode))
         if sample.chip_mode > 0 and math.isfinite(sample.chip_vx):
-            chips_pub.publish(ros_conv.chip_array_msg(
+            chips_pub.publish(chip_array_msg(
                 sample, self._frame_id, dt if dt > 0.0 else math.nan))
 
     def _check_stale(self) -> None:
@@ -251,8 +289,21 @@ class VelocitySensorNode(LifecycleNode):
             return
         marker = driver.stale_marker(self._now_s())
         if marker is not None and self._state_pub is not None:
-            self._state_pub.publish(ros_conv.planar_slip_msg(marker, self._frame_id,
-                                                             driver.requested_chip_mode))
+            self._state_pub.publish(planar_slip_msg(marker, self._frame_id,
+                                                    driver.requested_chip_mode))
+
+    def _on_driver_started(self, driver: SensorDriver, result: HandshakeResult) -> None:
+        """Take over a connected driver (from configure or from the start-retry thread)."""
+        cfg = driver.params
+        self._driver = driver
+        self._last_error = ''
+        self._jump_handle = self.get_clock().create_jump_callback(
+            JumpThreshold(min_forward=None, min_backward=Duration(nanoseconds=-1_000_000),
+                          on_clock_change=True), post_callback=self._on_clock_jump)
+        self.get_logger().info(
+            f'{cfg.port}: {result.name} identified (attempt {result.attempts}), calibration '
+            f'uploaded from {driver.calibration.source} (speed_term '
+            f'{cfg.calibration.speed_term}); frame {self._frame_id}')
 
     def _on_driver_event(self, level: str, message: str) -> None:
         logger = self.get_logger()
@@ -278,7 +329,8 @@ class VelocitySensorNode(LifecycleNode):
         driver = self._driver
         if driver is not None:
             self.get_logger().warning(
-                f'clock jumped by {jump.delta.nanoseconds * 1e-9:.3f} s: pose and monitors reset')
+                f'clock jumped by {nanoseconds_to_seconds(jump.delta.nanoseconds):.3f} s: '
+                'pose and monitors reset')
             driver.session.reset()
 
     # ---------------------------------------------------------------- services
@@ -288,7 +340,7 @@ class VelocitySensorNode(LifecycleNode):
         driver, cfg = self._driver, self._cfg
         mode = int(request.chip)
         if driver is None or cfg is None:
-            response.success, response.message = False, 'not configured'
+            response.success, response.message = False, self._why_no_driver()
             return response
         if mode > protocol.MAX_CHIP_MODE:
             response.success = False
@@ -305,7 +357,7 @@ class VelocitySensorNode(LifecycleNode):
             response.message = f'{cfg.port}: fused mode'
         else:
             response.message = (f'{cfg.port}: single-chip mode {mode}: raw chip-frame speeds on '
-                                f'finger_{cfg.finger}/slip/chips; no twist, state invalid')
+                                f'{names.slip_chips(cfg.finger)}; no twist, state invalid')
         self.get_logger().info(response.message)
         return response
 
@@ -314,7 +366,7 @@ class VelocitySensorNode(LifecycleNode):
         del request
         driver = self._driver
         if driver is None:
-            response.success, response.message = False, 'not configured'
+            response.success, response.message = False, self._why_no_driver()
             return response
         driver.reset_pose()
         response.success, response.message = True, 'integrated pose reset'
@@ -324,6 +376,8 @@ class VelocitySensorNode(LifecycleNode):
 
     def _report(self, task: str, now: float) -> Report:
         driver = self._driver
+        if driver is None and self._starter is not None:
+            return self._start_report(task, self._starter)
         if driver is None:
             if self._last_error:
                 return Report(Level.ERROR, f'configure failed: {self._last_error}')
@@ -333,6 +387,30 @@ class VelocitySensorNode(LifecycleNode):
             return Report(report.level, f'{report.message} (inactive: not publishing)',
                           report.values)
         return report
+
+
+    def _why_no_driver(self) -> str:
+        starter = self._starter
+        if starter is None:
+            return 'not configured'
+        return f'{starter.port}: sensor not started: {starter.status().last_error}'
+
+    @staticmethod
+    def _start_report(task: str, starter: DriverStarter) -> Report:
+        """Diagnostics while the sensor has not started: the link task says why."""
+        if task != 'link':
+            return Report(Level.STALE, 'sensor not started')
+        st = starter.status()
+        values = (('port', st.port), ('start_attempts', str(st.attempts)),
+                  ('retry_in_s', f'{st.retry_in_s:.2f}'), ('last_error', st.last_error))
+        if st.gave_up:
+            action = 'not retrying (fix the port or the sensor name, then reconfigure)'
+        elif st.running:
+            action = f'retrying in {st.retry_in_s:.1f} s'
+        else:
+            action = 'retries resume when the node is activated'
+        return Report(Level.ERROR, f'{st.port}: sensor not started after {st.attempts} '
+                                   f'attempt(s): {st.last_error}; {action}', values)
 
 
 def main(args: list[str] | None = None) -> int:

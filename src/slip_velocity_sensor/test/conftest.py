@@ -2,7 +2,7 @@
 """Shared fixtures of the slip_velocity_sensor core tests (no ROS needed)."""
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
 import pytest
 

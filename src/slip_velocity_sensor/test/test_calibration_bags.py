@@ -13,11 +13,11 @@ import pytest
 
 pytest.importorskip('rosbags')
 
-from slip_velocity_sensor import calibration_fit as cli  # noqa: E402
-from slip_velocity_sensor.core import calibration as cal_mod  # noqa: E402
-from slip_velocity_sensor.core.calibration import AxisCalibration  # noqa: E402
-from slip_velocity_sensor.core.calibration_fit import fit_axis  # noqa: E402
-from slip_velocity_sensor.core.procedure import (ProcedureParams,  # noqa: E402
+from slip_velocity_sensor import calibration_fit as cli
+from slip_velocity_sensor.core import calibration as cal_mod
+from slip_velocity_sensor.core.calibration import AxisCalibration
+from slip_velocity_sensor.core.calibration_fit import fit_axis
+from slip_velocity_sensor.core.procedure import (ProcedureParams,
                                                  synthesize_recording)
 
 TRUTH = AxisCalibration(0.31, 0.9066)

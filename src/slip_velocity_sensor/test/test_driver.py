@@ -13,7 +13,7 @@ import threading
 import time
 from dataclasses import replace
 from pathlib import Path
-from typing import Callable, Iterator
+from collections.abc import Callable, Iterator
 
 import pytest
 
@@ -25,6 +25,7 @@ from slip_velocity_sensor.core.emulator import (ConstantTwist, EmulatorParams, F
                                                 PtyEmulator)
 from slip_velocity_sensor.core.params import VelocitySensorParams
 from slip_velocity_sensor.core.session import Sample
+from slip_velocity_sensor.core.starter import DriverStarter
 
 CONFIG = Path(__file__).resolve().parents[1] / 'config'
 TRUTH = cal_mod.load_calibration(CONFIG / 'calibration_sensor_1.yaml')
@@ -64,8 +65,8 @@ class Collector:
 def ptys() -> Iterator[Callable[..., PtyEmulator]]:
     made: list[PtyEmulator] = []
 
-    def make(name: str = 'sensor_1', motion=ConstantTwist(*TWIST),  # noqa: ANN001
-             **kw) -> PtyEmulator:  # noqa: ANN003
+    def make(name: str = 'sensor_1', motion=ConstantTwist(*TWIST),
+             **kw) -> PtyEmulator:
         params = EmulatorParams(name=name, truth=TRUTH, firmware_speed_term='abs', **kw)
         pty = PtyEmulator(FirmwareEmulator(params, motion)).start()
         made.append(pty)
@@ -222,6 +223,113 @@ def test_runtime_parameter_updates(ptys, drivers) -> None:
     driver, _ = drivers(pty.port)
     driver.connect()
     params = driver.params
-    deferred = driver.update_params(replace(params, stale_after=0.2, radius=0.03))
+    deferred = driver.update_params(
+        replace(params, session=replace(params.session, stale_after=0.2), radius=0.03))
     assert deferred == ('radius',)
     assert driver.session.params.stale_after == 0.2
+
+
+# --------------------------------------------------------------------------- start retries
+
+@pytest.fixture
+def starter(tmp_path: Path) -> Iterator[Callable[..., tuple[DriverStarter, Collector, list]]]:
+    """Factory: a `DriverStarter` for a port, with its sample/event sink and started drivers."""
+    made: list[tuple[DriverStarter, list[SensorDriver]]] = []
+
+    def make(port: str, **flat: object) -> tuple[DriverStarter, Collector, list]:
+        values = {'port': port, 'lock_dir': str(tmp_path), 'calibration.speed_term': 'abs',
+                  'handshake.timeout': 0.2, 'handshake.retries': 1,
+                  'reconnect.initial_delay': 0.1, 'reconnect.max_delay': 0.4, **flat}
+        params = from_flat(VelocitySensorParams, values)
+        sink = Collector()
+        started: list[SensorDriver] = []
+
+        def make_driver() -> SensorDriver:
+            return SensorDriver(params, TRUTH, clock=time.monotonic, on_sample=sink,
+                                on_event=sink.event)
+        st = DriverStarter(port, make_driver, params.reconnect,
+                           on_started=lambda driver, result: started.append(driver),
+                           on_event=sink.event)
+        made.append((st, started))
+        return st, sink, started
+    yield make
+    for st, started in made:
+        st.stop()
+        for driver in started:
+            driver.close()
+
+
+def test_a_failed_start_is_retried_with_back_off_until_the_sensor_answers(ptys,
+                                                                          starter) -> None:
+    pty = ptys()
+    pty.emulator.set_silent(True)                   # powered but not answering yet
+    st, sink, started = starter(pty.port)
+    st.start()
+    assert _wait(lambda: sum(level == 'error' for level, _ in sink.events) >= 3, 5.0)
+    failures = [m for level, m in sink.events if level == 'error']
+    assert all(pty.port in m and 'no answer' in m for m in failures)
+    delays = [float(m.rsplit('retrying in ', 1)[1].split(' s')[0]) for m in failures]
+    assert delays[:3] == [0.1, 0.2, 0.4]            # exponential back-off, capped
+    pty.emulator.set_silent(False)
+    assert _wait(lambda: bool(started), 5.0), sink.events
+    status = st.status()
+    assert status.started and not status.running and status.last_error == ''
+    assert any(level == 'info' and 'started at attempt' in m for level, m in sink.events)
+    t0 = time.monotonic()
+    assert _wait(lambda: len(sink.valid_since(t0)) > 20, 3.0)
+    assert started[0].reports(time.monotonic())['link'].level is Level.OK
+
+
+def test_a_port_that_appears_later_is_started(ptys, starter, tmp_path: Path) -> None:
+    link = tmp_path / 'ttyVEL_later'
+    st, sink, started = starter(str(link))
+    st.start()
+    assert _wait(lambda: st.status().attempts >= 2, 3.0)
+    assert 'ttyVEL_later' in st.status().last_error and st.status().running
+    pty = ptys()
+    os.symlink(pty.port, link)                      # the adapter is plugged in
+    assert _wait(lambda: bool(started), 5.0), sink.events
+    t0 = time.monotonic()
+    assert _wait(lambda: len(sink.valid_since(t0)) > 20, 3.0)
+
+
+def test_a_wrong_name_is_not_retried_and_stop_ends_the_attempts(ptys, starter) -> None:
+    wrong = ptys(name='sensor_2')
+    st, sink, started = starter(wrong.port)
+    st.start()
+    assert _wait(lambda: st.status().gave_up, 3.0)
+    assert st.status().attempts == 1 and not started and not st.status().running
+    assert "answered 'sensor_2'" in st.status().last_error
+
+    silent = ptys()
+    silent.emulator.set_silent(True)
+    st, sink, started = starter(silent.port, **{'handshake.timeout': 30.0})
+    st.start()
+    assert _wait(lambda: st.status().attempts == 1, 2.0)   # an attempt is waiting for "n"
+    st.stop(timeout_s=5.0)             # deactivate: the 30 s attempt is aborted, not awaited
+    assert not st.status().running
+    silent.emulator.set_silent(False)
+    time.sleep(0.3)
+    assert not started and st.status().attempts == 1
+
+
+def test_a_blind_chip_invalidates_samples_and_the_chips_report_recovers(ptys, drivers) -> None:
+    pty = ptys(resync_chip=1)
+    driver, sink = drivers(pty.port, resync_timeout=0.1)
+    driver.connect()
+    assert _wait(lambda: len(sink.valid_since(0.0)) > 20, 3.0)
+    n_before = len(sink.samples)
+    pty.emulator.set_chip_blind(1)
+    assert _wait(lambda: driver.reports(time.monotonic())['chips'].level is Level.ERROR, 3.0)
+    report = driver.reports(time.monotonic())['chips']
+    assert 'chip 1 reads 0' in report.message and 'not answering' in report.message
+    time.sleep(0.2)
+    n_blind = len(sink.samples)          # every sample so far since the re-sync began ...
+    pty.emulator.set_chip_blind(1, False)
+    t_back = time.monotonic()
+    assert _wait(lambda: len(sink.valid_since(t_back)) > 20, 3.0)
+    first_invalid = next(i for i in range(n_before, n_blind) if not sink.samples[i].valid)
+    blind = sink.samples[first_invalid:n_blind]
+    assert len(blind) > 20 and not any(s.valid for s in blind)   # ... is invalid
+    assert min(s.vx for s in sink.valid_since(0.0)) > 0.010   # no zero passed as valid
+    assert driver.reports(time.monotonic())['chips'].level is Level.OK

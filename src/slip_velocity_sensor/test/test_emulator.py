@@ -2,11 +2,13 @@
 """Firmware emulator (virtual time): chip model, device calibration and fusion, commands."""
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+from slip_cell_common.core.monitors import Level
 from slip_velocity_sensor.core import calibration as cal_mod
 from slip_velocity_sensor.core import protocol
 from slip_velocity_sensor.core.chip_model import ChipModelParams, CountQuantizer, quantize_series
@@ -22,7 +24,7 @@ TRUTH = cal_mod.load_calibration(CONFIG / 'calibration_sensor_1.yaml')
 COUNT_MM = 25.4 / 3200.0
 
 
-def _velocity_lines(stream, duration: float, clock) -> list[VelocityLine]:  # noqa: ANN001
+def _velocity_lines(stream, duration: float, clock) -> list[VelocityLine]:
     parser, splitter, out = LineParser(), LineSplitter(), []
     end = clock() + duration
     while clock() < end:
@@ -33,7 +35,7 @@ def _velocity_lines(stream, duration: float, clock) -> list[VelocityLine]:  # no
     return out
 
 
-def _initialised(emulator, virtual_stream, drive_handshake,  # noqa: ANN001, ANN202
+def _initialised(emulator, virtual_stream, drive_handshake,
                  term: str = 'abs'):
     stream = virtual_stream(emulator)
     hs = Handshake('sensor_1', init_commands=cal_mod.upload_commands(TRUTH, term))
@@ -106,7 +108,7 @@ def test_counts_saturate_at_127_per_poll(clock, virtual_stream) -> None:
     assert np.mean([v.vy for v in lines]) == pytest.approx(ceiling, rel=0.01)
 
 
-def _mean_vy(speed: float, threshold: float, clock, virtual_stream) -> float:  # noqa: ANN001
+def _mean_vy(speed: float, threshold: float, clock, virtual_stream) -> float:
     emulator = FirmwareEmulator(EmulatorParams(default_radius=0.0243,
                                                outlier_threshold=threshold),
                                 ConstantTwist(0.0, speed, 0.0))
@@ -115,7 +117,9 @@ def _mean_vy(speed: float, threshold: float, clock, virtual_stream) -> float:  #
 
 
 def test_rest_reads_exactly_zero_and_slow_motion_is_quantised(clock, virtual_stream) -> None:
-    emulator = FirmwareEmulator(EmulatorParams(), ConstantTwist(0.0, 0.0, 0.0))
+    # A fixed period, so that a count maps to one speed (with the firmware's 6-8 ms jitter
+    # each period divides the counts by its own dt).
+    emulator = FirmwareEmulator(EmulatorParams(period_jitter=0.0), ConstantTwist(0.0, 0.0, 0.0))
     rest = _velocity_lines(virtual_stream(emulator), 0.5, clock)
     assert rest and all(v.vx == 0.0 and v.vy == 0.0 and v.omega == 0.0 for v in rest)
     emulator.set_motion(ConstantTwist(0.0, 0.0005, 0.0))  # 0.5 mm/s: about half a count/line
@@ -211,3 +215,108 @@ def test_emitted_lines_parse_as_good_lines(clock, virtual_stream) -> None:
             assert not isinstance(parser.parse(line, ov), BadLine)
     assert parser.counters.velocity == emulator.velocity_lines > 200
     assert protocol.EXPECTED_PRODUCT_ID == 0x31
+
+
+# --------------------------------------------------------------------------- firmware behaviour
+
+def _timed_output(emulator: FirmwareEmulator, until: float, step: float = 0.0005,
+                  start: float = 0.0) -> list[tuple[float, bytes]]:
+    """Lines the emulator prints from ``start`` to ``until``, with the time they came out."""
+    splitter, out, t = LineSplitter(), [], start
+    while t < until:
+        t += step
+        out += [(t, line) for line, _ in splitter.feed(emulator.advance(t))]
+    return out
+
+
+def test_output_period_is_6_to_8_ms_like_the_firmware() -> None:
+    emulator = FirmwareEmulator(EmulatorParams(seed=2))
+    times = np.array([t for t, line in _timed_output(emulator, 3.0, step=0.0001)
+                      if line.startswith(b'v/t')])
+    periods = np.diff(times)
+    assert periods.min() >= 0.006 - 2e-4 and periods.max() <= 0.008 + 2e-4
+    assert periods.std() > 0.0004                         # really jittered, not fixed
+    assert 135.0 < 1.0 / periods.mean() < 150.0            # ≈ 143 Hz
+
+
+def test_a_blind_chip_repeats_notice_and_signed_ids_every_pass_with_zero_lines() -> None:
+    emulator = FirmwareEmulator(EmulatorParams(default_radius=0.0243, seed=1),
+                                ConstantTwist(0.020, 0.0, 0.0))
+    emulator.advance(0.2)
+    emulator.set_chip_blind(1, product_id=-1)
+    lines = _timed_output(emulator, 0.7, start=0.2)
+    text = [line.rstrip(b'\r') for _, line in lines]
+    notices = [i for i, line in enumerate(text) if line == b'n/tresynch']
+    # Every notice is followed by the three signed product IDs, space-separated.
+    assert all(text[i + 1] == b'-1 49 49' for i in notices)
+    notice_times = np.array([lines[i][0] for i in notices])
+    assert np.diff(notice_times).max() < 0.0065 and len(notices) > 70    # every ≈ 6 ms pass
+    velocity = [line for line in text if line.startswith(b'v/t')]
+    assert set(velocity[1:]) == {b'v/t0.0000/t0.0000/t0.0000'}             # nothing is read
+    assert len(velocity) > 60
+    kinds = {b'notice' if line == b'n/tresynch' else b'ids' if line == b'-1 49 49'
+             else b'v' if line.startswith(b'v/t') else line for line in text}
+    assert kinds == {b'notice', b'ids', b'v'}
+
+
+def test_after_a_resync_the_notices_just_stop_and_motion_resumes() -> None:
+    emulator = FirmwareEmulator(EmulatorParams(default_radius=0.0243, resync_duration=0.05,
+                                               resync_chip=2, seed=1),
+                                ConstantTwist(0.020, 0.0, 0.0))
+    emulator.advance(0.1)
+    emulator.inject_resync()
+    lines = _timed_output(emulator, 0.5, start=0.1)
+    text = [line.rstrip(b'\r') for _, line in lines]
+    notice_times = [t for t, line in lines if line.rstrip(b'\r') == b'n/tresynch']
+    assert set(text) - {b'n/tresynch', b'49 0 49'} == {line for line in text
+                                                        if line.startswith(b'v/t')}
+    assert 0.044 <= notice_times[-1] - notice_times[0] <= 0.05    # for resync_duration
+    last = text.index(b'49 0 49', len(text) - 1 - text[::-1].index(b'49 0 49'))
+    after = [LineParser().parse(line) for line in text[last + 1:]]
+    assert all(isinstance(p, VelocityLine) for p in after)       # no invented end line
+    speeds = [p.vx for p in after]
+    assert speeds[0] < 0.018                                      # covers part of the re-sync
+    assert np.mean(speeds[2:]) == pytest.approx(0.020, rel=0.02)
+    assert not emulator.resyncing and emulator.resync_notices == len(notice_times)
+
+
+def test_the_session_publishes_no_valid_sample_during_an_emulated_resync() -> None:
+    emulator = FirmwareEmulator(EmulatorParams(default_radius=0.0243, seed=5),
+                                ConstantTwist(0.020, 0.0, 0.0))
+    session = SensorSession(expected_name='sensor_1')
+    session.mark_initialised(calibration_source='t', calibration_uploaded=True, speed_term='abs')
+    emulator.advance(0.1)
+    emulator.set_chip_blind(3)
+    lines = _timed_output(emulator, 0.3, start=0.1)    # blind for 0.2 s
+    emulator.set_chip_blind(3, False)
+    lines += _timed_output(emulator, 0.45, start=0.3)
+    sequence = []                       # ('r' | 'v', sample) in arrival order
+    for t, line in lines:
+        sample = session.handle_line(t, line)
+        if line.startswith(b'n/tresynch'):
+            sequence.append(('r', None))
+        elif sample is not None:
+            sequence.append(('v', sample))
+    first_notice = next(i for i, (kind, _) in enumerate(sequence) if kind == 'r')
+    last_notice = max(i for i, (kind, _) in enumerate(sequence) if kind == 'r')
+    window = [s for kind, s in sequence[first_notice:last_notice] if kind == 'v']
+    assert len(window) > 20 and not any(s.valid for s in window)
+    after = [s for kind, s in sequence[last_notice:] if kind == 'v']
+    assert [s.valid for s in after[:3]] == [False, False, True]   # covers, clean, measures
+    assert all(s.valid for s in after[2:]) and after[-1].vx == pytest.approx(0.020, rel=0.25)
+    assert session.reports(after[-1].stamp)['chips'].level is Level.OK
+
+
+def test_every_command_line_option_has_a_help_text_with_its_default(capsys) -> None:
+    from slip_velocity_sensor.core import emulator as emulator_module
+    with pytest.raises(SystemExit):
+        emulator_module._parse_args(['--help'])
+    help_text = capsys.readouterr().out
+    options = re.findall(r'^  (--[a-z-]+)', help_text, flags=re.MULTILINE)
+    assert len(options) >= 20
+    blocks = re.split(r'\n  (?=--)', help_text.split('options:')[1])
+    for block in blocks[1:]:
+        assert '(default:' in ' '.join(block.split()), block
+    args = emulator_module._parse_args([])
+    assert 1.0 / args.rate == pytest.approx(0.007, rel=1e-3)
+    assert args.jitter == pytest.approx(1 / 7, abs=1e-4)

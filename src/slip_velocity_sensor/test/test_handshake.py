@@ -142,16 +142,46 @@ def test_board_restart_during_the_upload_restarts_the_handshake() -> None:
 
 
 def test_resync_state_machine_details() -> None:
+    """The firmware prints notice + IDs before every re-sync pass and no end line: the
+    handshake asks again only after a velocity line that followed a period free of notices;
+    the ID line is not an end marker."""
+    zero = VelocityLine(0.0, 0.0, 0.0)
     hs = Handshake('sensor_1', HandshakeParams(timeout=1.0, retries=2))
     hs.start(0.0)
     assert hs.poll(0.0) == [b'n\n']
     hs.on_line(0.01, ResyncLine())
+    hs.on_line(0.01, ProductIdLine((0, 0x31, 0x31)))
     assert hs.state is HandshakeState.WAITING_RESYNC and hs.poll(0.5) == []
-    hs.on_line(0.6, ProductIdLine((0x31, 0x31, 0x31)))
-    assert hs.poll(0.6) == [b'n\n'] and hs.attempt == 2
-    hs.on_line(0.62, ResyncLine())
-    hs.on_line(0.70, ProductIdLine((0x31, 0x31, 0x31)))  # no attempt left
+    for k in range(5):                                # still out: notices every pass
+        hs.on_line(0.014 + 0.007 * k, zero)
+        hs.on_line(0.016 + 0.007 * k, ResyncLine())
+        hs.on_line(0.016 + 0.007 * k, ProductIdLine((0, 0x31, 0x31)))
+        assert hs.state is HandshakeState.WAITING_RESYNC and hs.attempt == 1
+    hs.on_line(0.06, zero)                            # covers the last re-sync
+    hs.on_line(0.067, zero)                           # a clean period ...
+    assert hs.state is HandshakeState.WAITING_RESYNC
+    hs.on_line(0.074, zero)                           # ... followed by a line: ask again
+    assert hs.poll(0.074) == [b'n\n'] and hs.attempt == 2
+    hs.on_line(0.08, ResyncLine())
+    for k in range(3):
+        hs.on_line(0.085 + 0.007 * k, zero)           # no attempt left
     assert hs.error is not None and hs.error.reason is HandshakeFailure.RESYNC_LOOP
+
+
+def test_a_name_reply_during_a_resync_is_accepted() -> None:
+    """The serial task answers "n" while the sensor task re-syncs a chip."""
+    hs = Handshake('sensor_1', HandshakeParams(timeout=1.0, retries=1),
+                   init_commands=[b'c0\n'])
+    hs.start(0.0)
+    assert hs.poll(0.0) == [b'n\n']
+    hs.on_line(0.002, ResyncLine())
+    hs.on_line(0.002, ProductIdLine((-1, 0x31, 0x31)))
+    hs.on_line(0.007, NameLine('sensor_1'))
+    assert hs.state is HandshakeState.UPLOADING and hs.poll(0.02) == [b'c0\n']
+    hs.on_line(0.03, ResyncLine())                    # the chip stays out: upload goes on
+    hs.poll(0.04)
+    assert hs.state is HandshakeState.DONE and hs.result is not None
+    assert hs.result.resyncs == 1
 
 
 def test_link_failure_and_wait_hint() -> None:

@@ -65,8 +65,8 @@ def test_node_parameters_flatten_with_the_spec_names() -> None:
                                               'calibration.chip_2.y.a': 0.29})
     assert params.handshake.retries == 5 and params.calibration.chip_2.y.a == 0.29
     assert flatten(params)['calibration.speed_term'] == 'zero'
-    session = params.session_params()
-    assert session.stale_after == 0.05 and session.expected_rate == 120.0
+    session = params.session
+    assert session.stale_after == 0.05 and session.expected_rate == 146.0
 
 
 @pytest.mark.parametrize('flat, message', [

@@ -20,7 +20,7 @@ from slip_velocity_sensor.core.protocol import (BadLine, BootLine, LineParser, L
     (b'v/t0.0000/t0.0000/t0.0000', (0.0, 0.0, 0.0)),
     (b'v/t-0.0000/t-0.9525/t-1.2500\r', (0.0, -0.0009525, -1.25)),
     (b'v/t550.0000/t-550.0000/t25.0000\r', (0.55, -0.55, 25.0)),
-    (b'v/t+1.5/t.5/t7.', (0.0015, 0.0005, 7.0)),
+    (b'v/t1234.5678/t10.0000/t-99.9999\r', (1.2345678, 0.01, -99.9999)),
 ])
 def test_golden_velocity_lines_convert_mm_s_to_si(line: bytes, expected: tuple) -> None:
     parser = LineParser()
@@ -34,8 +34,12 @@ def test_golden_velocity_lines_convert_mm_s_to_si(line: bytes, expected: tuple) 
     (b'n/tsensor_1\r', NameLine),
     (b'n/tsensor_2', NameLine),
     (b'n/tresynch\r', ResyncLine),
-    (b'49/t49/t49\r', ProductIdLine),
-    (b'0x31 0x31 0x00', ProductIdLine),
+    (b'resynch\r', ResyncLine),
+    (b'0 49 49\r', ProductIdLine),
+    (b'-1 49 49\r', ProductIdLine),
+    (b'49 49 -1', ProductIdLine),
+    (b'49/t49/t49', TextLine),            # not the firmware's format
+    (b'0x31 0x31 0x00', TextLine),
     (b'radius is updated to: 24.30\r', TextLine),
     (b'a in filter updated to: 0.000310', TextLine),
     (b'Chip 2 prodid: 0', TextLine),
@@ -50,8 +54,11 @@ def test_golden_other_lines(line: bytes, kind: type) -> None:
 def test_name_and_product_id_values() -> None:
     parser = LineParser()
     assert parser.parse(b'n/tsensor_2\r') == NameLine('sensor_2')
-    assert parser.parse(b'49/t49/t0') == ProductIdLine((0x31, 0x31, 0))
-    assert parser.parse(b'0x31,0x31,0x31') == ProductIdLine((0x31, 0x31, 0x31))
+    # Signed, as the firmware prints them: 0 = data line low, -1 = data line pulled high.
+    assert parser.parse(b'0 49 49\r') == ProductIdLine((0, 0x31, 0x31))
+    assert parser.parse(b'-1 49 49') == ProductIdLine((-1, 0x31, 0x31))
+    assert parser.parse(b'49 -1 0') == ProductIdLine((0x31, -1, 0))
+    assert parser.counters.product_ids == 3
 
 
 # --------------------------------------------------------------------------- bad input
@@ -65,7 +72,7 @@ def test_name_and_product_id_values() -> None:
     b'v/t12.3456/t-0.8000/t0.0131/t1.0',  # extra field
     b'v/t12.3456/t/t0.0131',             # empty field
     b'v/t12.34.56/t-0.8000/t0.0131',
-    b'v/t1e3/t0/t0',                     # firmware never prints exponents
+    b'v/t1e3/t0.0000/t0.0000',           # firmware never prints exponents
     b'v/t 1.0/t2.0/t3.0',
     b'v/t1.0/t2.0/t3.0 ',
     b'n\tsensor_1',
@@ -92,11 +99,78 @@ def test_nan_inf_and_overflow_values_are_rejected(field: bytes, position: int) -
 
 def test_huge_digit_strings_and_implausible_speeds_are_rejected() -> None:
     parser = LineParser(ProtocolLimits(max_speed=2.0, max_omega=100.0))
-    assert isinstance(parser.parse(b'v/t' + b'9' * 400 + b'/t0/t0'), BadLine)  # overlong
-    assert isinstance(parser.parse(b'v/t' + b'9' * 60 + b'/t0/t0'), BadLine)   # implausible
-    assert isinstance(parser.parse(b'v/t2000.0001/t0/t0'), BadLine)
-    assert isinstance(parser.parse(b'v/t0/t0/t100.5'), BadLine)
+    zeros = b'/t0.0000/t0.0000'
+    overlong = parser.parse(b'v/t' + b'9' * 400 + b'.0000' + zeros)
+    assert isinstance(overlong, BadLine) and overlong.reason == 'overlong line'
+    for line in (b'v/t' + b'9' * 60 + b'.0000' + zeros, b'v/t2000.0001' + zeros,
+                 b'v/t0.0000/t0.0000/t100.5000'):
+        parsed = parser.parse(line)
+        assert isinstance(parsed, BadLine) and parsed.reason == 'implausible velocity', line
     assert isinstance(parser.parse(b'v/t2000.0000/t-2000.0000/t100.0000'), VelocityLine)
+
+
+#: Numbers a corrupted line can carry that are not in the firmware's format (Arduino
+#: ``print(value, 4)``: ``-?<digits>.<4 digits>``). Accepting them gave values off by up to 10×.
+MALFORMED_NUMBERS = [
+    '12.345',       # a decimal lost
+    '12.34567',     # a decimal gained
+    '123.456',      # the point moved right (10× too large, 3 decimals)
+    '1.23456',      # the point moved left (10× too small, 5 decimals)
+    '123456',       # the point lost
+    '12.3.456',     # a second point
+    '12.',          # no decimals
+    '.3456',        # no integer part
+    '-.3456',
+    '+12.3456',     # the firmware never prints a plus
+    '012.3456',     # nor leading zeros
+    '-00.1000',
+    '00.0000',
+    '1e3',          # nor exponents
+    '1.2345e3',
+    '12,3456',      # decimal comma
+    '--1.0000',
+    '-',
+    '.',
+    '',
+    ' 1.0000',
+    '1.0000 ',
+    '1_0.0000',
+    '0x1.0000',
+    'nan', 'inf', 'ovf',
+]
+
+
+@pytest.mark.parametrize('number', MALFORMED_NUMBERS)
+@pytest.mark.parametrize('position', [0, 1, 2])
+def test_numbers_without_the_firmware_format_are_rejected(number: str, position: int) -> None:
+    fields = ['12.3456', '-0.8000', '0.0131']
+    fields[position] = number
+    parser = LineParser()
+    parsed = parser.parse(('v/t' + '/t'.join(fields) + '\r').encode())
+    assert isinstance(parsed, BadLine), (number, parsed)
+    assert parser.counters.velocity == 0 and parser.counters.bad == 1
+
+
+def test_property_format_mutations_never_pass_as_values() -> None:
+    """Seeded property check: for random firmware-formatted values, every single-character
+    deletion at or after the point, digit insertion in the fraction and shift of the point is
+    rejected, and the intact line parses to exactly the printed value."""
+    rng = np.random.default_rng(16)
+    parser = LineParser()
+    for value in rng.normal(0.0, 300.0, 300):
+        text = f'{value:.4f}'
+        line = f'v/t{text}/t0.0000/t0.0000'.encode()
+        parsed = parser.parse(line)
+        assert isinstance(parsed, VelocityLine) and parsed.vx == float(text) / 1000.0
+        point = text.index('.')
+        lost = [text[:pos] + text[pos + 1:] for pos in range(point, len(text))]
+        gained = [text[:pos] + d + text[pos:] for pos in range(point + 1, len(text) + 1)
+                  for d in '059']
+        moved = [text[:point] + text[point + 1:pos] + '.' + text[pos:]
+                 for pos in range(point + 2, len(text) + 1)]     # the point shifted right
+        for m in lost + gained + moved:
+            bad = parser.parse(f'v/t{m}/t0.0000/t0.0000'.encode())
+            assert isinstance(bad, BadLine), (text, m)
 
 
 def test_overflowed_line_from_the_reader_is_bad() -> None:
@@ -145,7 +219,7 @@ def _fuzz_stream(rng: np.random.Generator, n_lines: int) -> bytes:
             vals = rng.normal(0.0, 200.0, 3)
             line = f'v/t{vals[0]:.4f}/t{vals[1]:.4f}/t{vals[2] / 50:.4f}\r\n'.encode()
         elif kind == 2:
-            line = rng.choice([b'n/tsensor_1\r\n', b'n/tresynch\r\n', b'49/t49/t49\r\n',
+            line = rng.choice([b'n/tsensor_1\r\n', b'n/tresynch\r\n', b'0 49 49\r\n',
                                b'radius is updated to: 24.30\r\n', b'\r\n'])
         elif kind == 3:  # mutate a valid line: flip, drop or insert bytes
             line = bytearray(b'v/t12.3456/t-0.8000/t0.0131\r\n')
@@ -187,6 +261,8 @@ def test_fuzz_1e5_lines_never_raise_and_counters_add_up() -> None:
                 assert abs(parsed.vx) <= limits.max_speed and abs(parsed.vy) <= limits.max_speed
                 assert abs(parsed.omega) <= limits.max_omega
                 assert line.startswith(b'v/t') and b'\t' not in line
+                fields = line.rstrip(b'\r')[3:].split(b'/t')
+                assert all(len(f.split(b'.')[1]) == 4 for f in fields), line   # 4 decimals
         pos += size
     c = parser.counters
     assert n_lines >= 100_000
@@ -226,7 +302,7 @@ def test_command_formatting_in_device_units() -> None:
     lambda: protocol.calibration_command(1, 'x', 'b', 0.0),
     lambda: protocol.calibration_command(1, 'x', 'a', math.inf),
 ])
-def test_invalid_commands_are_refused_before_reaching_the_device(call) -> None:  # noqa: ANN001
+def test_invalid_commands_are_refused_before_reaching_the_device(call) -> None:
     with pytest.raises(ValueError):
         call()
 

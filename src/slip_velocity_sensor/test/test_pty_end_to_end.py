@@ -9,7 +9,7 @@ from __future__ import annotations
 import queue
 import time
 from pathlib import Path
-from typing import Callable, Iterator
+from collections.abc import Callable, Iterator
 
 import pytest
 
@@ -60,7 +60,7 @@ def _wait_until(predicate: Callable[[], bool], timeout: float) -> bool:
 def pty_emulator() -> Iterator[Callable[..., PtyEmulator]]:
     started: list[PtyEmulator] = []
 
-    def make(params: EmulatorParams, motion=None) -> PtyEmulator:  # noqa: ANN001
+    def make(params: EmulatorParams, motion=None) -> PtyEmulator:
         emulator = PtyEmulator(FirmwareEmulator(params, motion)).start()
         started.append(emulator)
         return emulator
@@ -88,7 +88,7 @@ def links() -> Iterator[Callable[[str, Router], SerialLink]]:
 
 def _handshake(link: SerialLink, router: Router, expected: str, port: str,
                params: HandshakeParams, init: list[bytes] | None = None,
-               session: SensorSession | None = None):  # noqa: ANN202
+               session: SensorSession | None = None):
     hs = Handshake(expected, params, init_commands=init or [], command_spacing=0.010, port=port)
     runner = HandshakeRunner(hs, session.parser if session is not None else None)
     router.on_line_target, router.on_lost_target = runner.on_line, runner.on_lost
@@ -136,6 +136,57 @@ def test_emulator_end_to_end_over_a_pty(pty_emulator, links) -> None:
     assert d.counters.bad == 0 and not d.stale and 90.0 < d.rate_hz < 150.0
     assert all(r.level is Level.OK for r in session.reports(last.stamp).values())
     assert max(latency) < 0.5
+
+
+def test_resync_window_over_a_pty(pty_emulator, links) -> None:
+    """A chip stops answering while the surface moves at 20 mm/s: the emulated firmware prints
+    notice + signed IDs every pass and zero velocity lines. From the first notice up to the
+    first velocity line after a clean pass nothing is valid; then valid samples measure the
+    motion again and the chips report clears."""
+    twist = (0.020, 0.0, 0.0)
+    pty = pty_emulator(EmulatorParams(truth=TRUTH, firmware_speed_term='abs'),
+                       ConstantTwist(*twist))
+    router = Router()
+    link = links(pty.port, router)
+    session = SensorSession(port=pty.port, expected_name='sensor_1')
+    init = cal_mod.upload_commands(TRUTH, 'abs') + [protocol.chip_mode_command(0)]
+    _handshake(link, router, 'sensor_1', pty.port, HandshakeParams(timeout=1.0), init, session)
+    session.mark_initialised(calibration_source=TRUTH.source, calibration_uploaded=True,
+                             speed_term='abs')
+    events: list[tuple[str, Sample | None]] = []        # arrival order, reader thread
+
+    def on_line(line: bytes, overflow: bool, t: float) -> None:
+        sample = session.handle_line(t, line, overflow)
+        if line.rstrip(b'\r') == b'n/tresynch':
+            events.append(('r', None))
+        elif sample is not None:
+            events.append(('v', sample))
+
+    def count(kind: str, valid: bool | None = None) -> int:
+        return sum(1 for k, s in list(events)
+                   if k == kind and (valid is None or (s is not None and s.valid == valid)))
+    router.on_line_target = on_line
+    assert _wait_until(lambda: count('v', True) >= 30, timeout=5.0)
+    pty.emulator.set_chip_blind(2, product_id=0)
+    assert _wait_until(lambda: count('r') >= 40, timeout=5.0)
+    chips = session.reports(time.monotonic())['chips']
+    assert chips.level in (Level.WARN, Level.ERROR) and 'chip 2 reads 0' in chips.message
+    pty.emulator.set_chip_blind(2, False)
+    valid_before = count('v', True)
+    assert _wait_until(lambda: count('v', True) >= valid_before + 60, timeout=5.0)
+    router.on_line_target = None
+    kinds = [k for k, _ in events]
+    first, last = kinds.index('r'), len(kinds) - 1 - kinds[::-1].index('r')
+    window = [s for k, s in events[first:last] if k == 'v']
+    assert len(window) >= 30 and not any(s.valid for s in window)
+    after = [s for k, s in events[last:] if k == 'v']
+    assert [s.valid for s in after[:3]] == [False, False, True]
+    assert all(s.valid for s in after[2:])
+    valid = [s for k, s in events if k == 'v' and s.valid]
+    assert min(s.vx for s in valid) > 0.010            # no zero published as a measurement
+    mean_after = sum(s.vx for s in after[2:]) / len(after[2:])
+    assert mean_after == pytest.approx(twist[0], rel=0.05)
+    assert session.reports(after[-1].stamp)['chips'].level is Level.OK
 
 
 def test_unplugged_port_mid_stream_is_reported_not_swallowed(pty_emulator, links) -> None:
@@ -246,3 +297,29 @@ def test_emulator_command_line_serves_a_pty(tmp_path: Path) -> None:
         returncode = proc.wait(5.0)
     assert returncode == 0                   # SIGTERM is a clean stop
     assert not os.path.lexists(link_path)    # and the symlink is removed
+
+
+def test_emulator_command_line_plays_a_blind_chip(tmp_path: Path) -> None:
+    import os
+    import subprocess
+    import sys
+
+    import serial
+    env = dict(os.environ, PYTHONUNBUFFERED='1')
+    proc = subprocess.Popen(
+        [sys.executable, '-m', 'slip_velocity_sensor.core.emulator', '--blind-chip', '2',
+         '--blind-id', '-1', '--motion', 'constant', '--vx', '0.02', '--duration', '10'],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    try:
+        port = proc.stdout.readline().strip()
+        with serial.serial_for_url(port, baudrate=115200, timeout=0.05) as ser:
+            seen = b''
+            end = time.monotonic() + 5.0
+            while seen.count(b'n/tresynch') < 20 and time.monotonic() < end:
+                seen += ser.read(512)
+    finally:
+        proc.terminate()
+        proc.wait(5.0)
+    assert seen.count(b'n/tresynch\r\n49 -1 49\r\n') >= 20
+    velocity = [line for line in seen.split(b'\r\n') if line.startswith(b'v/t')]
+    assert velocity[2:] and set(velocity[2:]) == {b'v/t0.0000/t0.0000/t0.0000'}

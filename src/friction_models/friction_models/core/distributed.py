@@ -36,7 +36,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import Optional, Union
+from typing import Union
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -287,7 +287,7 @@ class DistributedPlanarLuGre:
             raise ValueError(f'normal force must be finite and >= 0 N, got {f_n!r}')
         self._f_n = f
 
-    def set_pressure(self, surface: Union[ContactSurface, ArrayLike]) -> None:
+    def set_pressure(self, surface: ContactSurface | ArrayLike) -> None:
         """Replace the pressure map at run time.
 
         Cells active in both maps keep their deflection; cells leaving the contact lose it and
@@ -398,7 +398,7 @@ class DistributedPlanarLuGre:
         u *= c
         k *= u
 
-    def step(self, twist: TwistLike, dt: float, f_n: Optional[float] = None,
+    def step(self, twist: TwistLike, dt: float, f_n: float | None = None,
              frame: Frame = 'pad') -> Wrench:
         """Advance the bristles by ``dt`` at a constant twist and return the friction wrench.
 
@@ -539,7 +539,7 @@ class DistributedPlanarLuGre:
         full[:, self._surface.active] = rate
         return np.moveaxis(full.reshape(2, ny, nx), 0, -1)
 
-    def wrench_at(self, z: ArrayLike, twist: TwistLike, f_n: Optional[float] = None,
+    def wrench_at(self, z: ArrayLike, twist: TwistLike, f_n: float | None = None,
                   frame: Frame = 'pad') -> Wrench:
         """Wrench for a given state with the instantaneous rate ż (ODE-solver use).
 
@@ -562,7 +562,7 @@ class DistributedPlanarLuGre:
         return self._finish(fx, fy, tau, vx, vy, om)
 
     def steady_state(self, twist: TwistLike, frame: Frame = 'pad', bilinear: bool = False,
-                     f_n: Optional[float] = None) -> Wrench:
+                     f_n: float | None = None) -> Wrench:
         """Steady sliding wrench for a constant twist (no state; spec §4 "steady-state mode").
 
         Args:

@@ -31,27 +31,27 @@ on its side)::
                 if out.force is not None:
                     h.command_force(out.force, timeout=out.timeout)
 
-Scripted scenarios: `grasp_and_hold`, `estimation_exploration` (control_and_estimation §3.8)
-and `open_loop_release`.
+Scripted scenarios: `grasp_and_hold` and `open_loop_release`. The exploration of
+control_and_estimation §3.8 is the experiment runner's own (`slip_control.core.exploration`),
+played on this harness by the evaluation (`slip_bringup.core.evaluation.sim_runner_cell`).
 """
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any, Callable, Optional, Sequence
+from typing import Any
+from collections.abc import Callable, Sequence
 
 from .sensors import FtSample, SimEvents, TelemetrySample, VelocitySample
 from .sim_cell import SimCell, SimState
 
 __all__ = [
-    'ExplorationResult',
     'GraspResult',
     'Harness',
     'HarnessError',
     'Recorder',
     'ReleaseResult',
     'default_motion_time',
-    'estimation_exploration',
     'grasp_and_hold',
     'open_loop_release',
 ]
@@ -103,8 +103,9 @@ class Recorder:
         self.vy.append(s.vy)
         self.omega.append(s.omega)
         self.normal_force.append(s.normal_force_1)
-        self.measured_force.append(sample.measured_force)
-        self.voltage.append(sample.voltage_cmd)
+        status = sample.status
+        self.measured_force.append(status.measured_grasp_force if status is not None else math.nan)
+        self.voltage.append(status.voltage_cmd if status is not None else math.nan)
         self.object_x.append(s.object_x)
         self.object_y.append(s.object_y)
         self.object_theta.append(s.object_theta)
@@ -213,7 +214,7 @@ class Harness:
             raise HarnessError(f'grasp-force command refused: {message}')
 
     def move(self, lift: float = 0.0, lateral: float = 0.0, rotation: float = 0.0,
-             duration: Optional[float] = None, wait: bool = True) -> float:
+             duration: float | None = None, wait: bool = True) -> float:
         """Move the gripper (see `SimCell.move_gripper`); waits for the end by default.
 
         Args:
@@ -233,6 +234,8 @@ class Harness:
             raise HarnessError(f'arm move refused: {message}')
         if wait:
             self.run_until_time(end)
+            if self.cell.arm_moving:   # the end falls just after the last step boundary
+                self.run_for(self.cell.params.physics_dt)
         return end
 
     def bias(self, wait: bool = True) -> None:
@@ -268,7 +271,7 @@ class Harness:
         if not ok:
             raise HarnessError(f'disturbance refused: {message}')
 
-    def reset(self, preset: Optional[str] = None, object_on_table: bool = True) -> None:
+    def reset(self, preset: str | None = None, object_on_table: bool = True) -> None:
         """Reset the scene (see `SimCell.reset`)."""
         ok, message = self.cell.reset(preset, object_on_table)
         if not ok:
@@ -348,114 +351,6 @@ def grasp_and_hold(h: Harness, force: float = 10.0, settle: float = 2.0, lift: f
             true.append(s.normal_force_1)
     return GraspResult(t_grasp, t_hold, h.t, sum(meas) / max(len(meas), 1),
                        sum(true) / max(len(true), 1), slip, rot, h.state().dropped)
-
-
-@dataclass(frozen=True)
-class ExplorationResult:
-    """Outcome of `estimation_exploration` (ground truth, SI).
-
-    Attributes:
-        linear_window: ``(t0, t1)`` of the 1 s linear phase [s].
-        rotational_window: ``(t0, t1)`` of the 1 s rotational phase [s].
-        push_window: ``(t0, t1)`` of the 0.8 s push-down [s].
-        slide: Grasp-point displacement relative to the pads over the push, ``gripper_middle``
-            (x, y) [m] (the object slides up: y > 0).
-        slide_speed: Mean relative speed over the push [m/s] (≈ 12.5 mm/s).
-        object_drop: Largest change of the object's world height during the push [m].
-        twist_peak: Largest relative rotation of the object w.r.t. the pads during the twist
-            [rad] (≈ −0.1745: the pads turn on the object).
-        twist_final: Relative rotation at the end of the twist-back [rad].
-        object_turn: Largest change of the object's world angle during the twist [rad].
-        dropped: The object fell.
-    """
-
-    linear_window: tuple[float, float]
-    rotational_window: tuple[float, float]
-    push_window: tuple[float, float]
-    slide: tuple[float, float]
-    slide_speed: float
-    object_drop: float
-    twist_peak: float
-    twist_final: float
-    object_turn: float
-    dropped: bool
-
-
-PhaseHook = Callable[[str, float, float], None]
-
-
-def estimation_exploration(h: Harness, on_phase: Optional[PhaseHook] = None,
-                           prepare: bool = True, grasp_force: float = 10.0,
-                           explore_force: float = 5.0, release: bool = True
-                           ) -> ExplorationResult:
-    """The contact-estimation exploration of control_and_estimation §3.8.
-
-    Object on the table between the open fingers, gripper at the pick-up pose. Grasp with
-    10 N for 2 s, command 5 N, push the gripper 0.01 m down in 0.8 s (the table holds the
-    object, which slides up between the pads), wait 0.2 s, twist +0.1745 rad in 0.5 s and back
-    in 0.5 s (the table stops the object turning, so the pads twist on it), then release
-    (−8 N, 1 s, re-bias).
-
-    Args:
-        h: Harness.
-        on_phase: Called as ``on_phase('linear' | 'rotational', t_start, duration)`` when an
-            estimator phase should start (e.g. ``ContactEstimator.start``).
-        prepare: Home (if needed) and bias first.
-        grasp_force: Grasp force [N].
-        explore_force: Force during the exploration [N].
-        release: Release and re-bias at the end.
-    """
-    if prepare:
-        _prepare(h)
-    h.command_force(grasp_force)
-    h.run_for(2.0)
-    h.command_force(explore_force)
-    # Linear phase: 1 s, with the push-down in the first 0.8 s.
-    t_lin = h.t
-    if on_phase is not None:
-        on_phase('linear', t_lin, 1.0)
-    s0 = h.state()
-    y_obj = [s0.object_y]
-
-    def track(hh: Harness) -> bool:
-        y_obj.append(hh.state().object_y)
-        return False
-
-    h.move(lift=-0.01, duration=0.8, wait=False)
-    h.run_until(track, 0.8)
-    s1 = h.state()
-    t_push_end = h.t
-    h.run_for(0.2)
-    # Rotational phase: 1 s, +0.1745 rad in 0.5 s and back.
-    t_rot = h.t
-    if on_phase is not None:
-        on_phase('rotational', t_rot, 1.0)
-    r0 = h.state()
-    rel = [0.0]
-    turn = [0.0]
-
-    def track_rot(hh: Harness) -> bool:
-        s = hh.state()
-        rel.append(s.theta - r0.theta)
-        turn.append(s.object_theta - r0.object_theta)
-        return False
-
-    h.move(rotation=math.radians(10.0), duration=0.5, wait=False)
-    h.run_until(track_rot, 0.5)
-    h.move(rotation=-math.radians(10.0), duration=0.5, wait=False)
-    h.run_until(track_rot, 0.5)
-    twist_final = h.state().theta - r0.theta
-    dropped = h.state().dropped
-    if release:
-        h.release()
-    slide = (s1.x - s0.x, s1.y - s0.y)
-    return ExplorationResult(
-        linear_window=(t_lin, t_lin + 1.0), rotational_window=(t_rot, t_rot + 1.0),
-        push_window=(t_lin, t_push_end), slide=slide,
-        slide_speed=math.hypot(*slide) / (t_push_end - t_lin),
-        object_drop=max(abs(y - s0.object_y) for y in y_obj),
-        twist_peak=min(rel, key=lambda v: -abs(v)), twist_final=twist_final,
-        object_turn=max(abs(v) for v in turn), dropped=dropped)
 
 
 @dataclass(frozen=True)

@@ -39,7 +39,7 @@ contact spring, stable for ``ω_c dt < 2`` with ``ω_c = √(σ0 f_n/m)``. The t
 from __future__ import annotations
 
 import math
-from typing import Literal, Optional
+from typing import Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -101,7 +101,7 @@ def check_force_from(force_from: str) -> ForceFrom:
     raise ValueError(f"force_from must be 'pre_update' or 'post_update', got {force_from!r}")
 
 
-def phi(x: ArrayLike, out: Optional[NDArray[np.float64]] = None) -> NDArray[np.float64]:
+def phi(x: ArrayLike, out: NDArray[np.float64] | None = None) -> NDArray[np.float64]:
     """Evaluate ``φ(x) = −expm1(−x)/x`` with ``φ(0) = 1`` (spec §8), element-wise.
 
     Args:
@@ -150,7 +150,7 @@ def exponential_step(z: ArrayLike, q: ArrayLike, k: ArrayLike, dt: float,
 
 
 def rate_limit(zdot: NDArray[np.float64], z: ArrayLike, z_ss: ArrayLike, dt: float,
-               out: Optional[NDArray[np.float64]] = None) -> NDArray[np.float64]:
+               out: NDArray[np.float64] | None = None) -> NDArray[np.float64]:
     """Reference rate limiter: clip each component to ``|ż_i| ≤ |z_ss,i − z_i|/dt`` (spec §8).
 
     Component-wise (not a projection), keeping the sign of ``ż_i``; it may therefore rotate a
@@ -175,7 +175,7 @@ def rate_limit(zdot: NDArray[np.float64], z: ArrayLike, z_ss: ArrayLike, dt: flo
 
 
 def explicit_euler_step(z: ArrayLike, q: ArrayLike, k: ArrayLike, dt: float,
-                        z_ss: Optional[ArrayLike] = None,
+                        z_ss: ArrayLike | None = None,
                         ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """One explicit-Euler step of ``ż = q − k z`` (the reference scheme), optionally limited.
 

@@ -37,7 +37,6 @@ from collections import OrderedDict
 from dataclasses import dataclass, field
 from pathlib import Path
 from collections.abc import Callable
-from typing import Optional, Union
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -65,7 +64,7 @@ _CHUNK_ELEMENTS = 1 << 17
 
 def _rotation_wrenches(surface: ContactSurface, px: NDArray[np.float64],
                        py: NDArray[np.float64],
-                       on_chunk: Optional[Callable[[int], None]] = None) -> NDArray[np.float64]:
+                       on_chunk: Callable[[int], None] | None = None) -> NDArray[np.float64]:
     """Coulomb wrenches at the CoP (μ = f_n = 1) of pure rotations (ω > 0) about points p.
 
     Args:
@@ -101,7 +100,7 @@ def _rotation_wrenches(surface: ContactSurface, px: NDArray[np.float64],
 
 
 def corner_wrenches(surface: ContactSurface,
-                    on_chunk: Optional[Callable[[int], None]] = None) -> NDArray[np.float64]:
+                    on_chunk: Callable[[int], None] | None = None) -> NDArray[np.float64]:
     """Coulomb wrenches at the CoP of unit-ω rotations about every cell corner.
 
     Args:
@@ -211,7 +210,7 @@ class LimitSurface:
     # ------------------------------------------------------------------ build
     @classmethod
     def build(cls, surface: ContactSurface, n_ls: int = 20,
-              progress: Optional[ProgressCallback] = None,
+              progress: ProgressCallback | None = None,
               report_after_s: float = 1.0) -> LimitSurface:
         """Pre-compute the table for ``surface`` (vectorised over all nodes).
 
@@ -283,7 +282,7 @@ class LimitSurface:
 
     # ------------------------------------------------------------------ lookup
     def lookup(self, vx: float, vy: float, omega: float,
-               r_a: Optional[float] = None) -> tuple[float, float, float]:
+               r_a: float | None = None) -> tuple[float, float, float]:
         """Normalised wrench ``h`` for one twist at the CoP (spec §6.4, scalar path).
 
         Args:
@@ -299,7 +298,7 @@ class LimitSurface:
         ra = self.r_a if r_a is None else r_a
         return lookup_scalar(self.flat, self.n_ls, vx, vy, omega, ra)
 
-    def lookup_batch(self, twists: ArrayLike, r_a: Optional[ArrayLike] = None,
+    def lookup_batch(self, twists: ArrayLike, r_a: ArrayLike | None = None,
                      ) -> NDArray[np.float64]:
         """Vectorised :meth:`lookup` for (K, 3) twists at the CoP; returns (K, 3)."""
         tw = np.atleast_2d(np.asarray(twists, dtype=np.float64))
@@ -311,7 +310,7 @@ class LimitSurface:
         return out.T.copy()
 
     # ------------------------------------------------------------------ persistence
-    def save(self, path: Union[str, Path]) -> Path:
+    def save(self, path: str | Path) -> Path:
         """Write the table to a ``.npz`` file; returns the path written."""
         p = Path(path)
         if p.suffix != '.npz':
@@ -326,7 +325,7 @@ class LimitSurface:
         return p
 
     @classmethod
-    def load(cls, path: Union[str, Path], expected_key: Optional[str] = None) -> LimitSurface:
+    def load(cls, path: str | Path, expected_key: str | None = None) -> LimitSurface:
         """Read a table written by :meth:`save`.
 
         Args:
@@ -466,7 +465,7 @@ class LimitSurfaceCache:
         max_entries: In-memory capacity (least recently used entries are dropped).
     """
 
-    def __init__(self, directory: Optional[Union[str, Path]] = None,
+    def __init__(self, directory: str | Path | None = None,
                  max_entries: int = 64) -> None:
         self._dir = None if directory is None else Path(directory)
         self._max = max(1, int(max_entries))
@@ -476,16 +475,16 @@ class LimitSurfaceCache:
         self.builds = 0
 
     @property
-    def directory(self) -> Optional[Path]:
+    def directory(self) -> Path | None:
         """On-disk folder, or ``None``."""
         return self._dir
 
-    def path_for(self, key: str) -> Optional[Path]:
+    def path_for(self, key: str) -> Path | None:
         """File that holds ``key`` (``None`` without a directory)."""
         return None if self._dir is None else self._dir / f'{key}.npz'
 
     def get(self, surface: ContactSurface, n_ls: int = 20,
-            progress: Optional[ProgressCallback] = None) -> LimitSurface:
+            progress: ProgressCallback | None = None) -> LimitSurface:
         """Return the table for ``surface``, from memory, disk, or a fresh build (then saved).
 
         Args:

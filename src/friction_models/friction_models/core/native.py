@@ -31,7 +31,7 @@ import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from types import ModuleType
-from typing import Mapping, Optional, Sequence
+from collections.abc import Mapping, Sequence
 
 __all__ = [
     'COMPILED_MODULES',
@@ -46,7 +46,8 @@ __all__ = [
 ]
 
 #: Hot modules compiled by mypyc (names inside ``friction_models.core``).
-COMPILED_MODULES: tuple[str, ...] = ('limit_surface', 'reduced', 'plant', 'sensors', 'sim_cell')
+COMPILED_MODULES: tuple[str, ...] = ('limit_surface', 'reduced', 'pad_contact', 'actuator',
+                                      'arm', 'table', 'plant', 'sensors', 'sim_cell')
 #: File beside the modules with the SHA-256 of each source the extensions were built from.
 MANIFEST_NAME = 'native_sources.json'
 #: Environment variable: ``1`` runs the pure-Python modules even when compiled ones exist.
@@ -76,7 +77,7 @@ def manifest_text(directory: Path, compiler: str) -> str:
                       sort_keys=True) + '\n'
 
 
-def extension_path(directory: Path, module: str) -> Optional[Path]:
+def extension_path(directory: Path, module: str) -> Path | None:
     """The C extension built for ``module`` in ``directory`` (this interpreter's ABI), or None."""
     for suffix in importlib.machinery.EXTENSION_SUFFIXES:
         path = directory / f'{module}{suffix}'
@@ -85,7 +86,7 @@ def extension_path(directory: Path, module: str) -> Optional[Path]:
     return None
 
 
-def stale_reason(directory: Path, modules: Sequence[str] = COMPILED_MODULES) -> Optional[str]:
+def stale_reason(directory: Path, modules: Sequence[str] = COMPILED_MODULES) -> str | None:
     """Why the extensions in ``directory`` cannot be used, or None when all are current.
 
     Returns ``'not compiled'`` when no module has an extension at all.
@@ -113,7 +114,7 @@ class _SourceFinder(importlib.abc.MetaPathFinder):
         self._paths = dict(paths)
 
     def find_spec(self, fullname: str, path: object = None,
-                  target: Optional[ModuleType] = None) -> Optional[importlib.machinery.ModuleSpec]:
+                  target: ModuleType | None = None) -> importlib.machinery.ModuleSpec | None:
         del path, target
         source = self._paths.get(fullname)
         if source is None:

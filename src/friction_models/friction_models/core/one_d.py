@@ -31,7 +31,7 @@ step-mean rate). For the Elasto-Plastic law the exponential step additionally ke
 from __future__ import annotations
 
 import math
-from typing import Optional, Union
+from typing import Union
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -208,7 +208,7 @@ class _Bristle1D:
         return z_pre if self._force_from == 'pre_update' else self._z
 
     def _advance(self, v: FloatArray, k: FloatArray, z_ss: FloatArray, dt: float,
-                 z_bound: Optional[FloatArray]) -> FloatArray:
+                 z_bound: FloatArray | None) -> FloatArray:
         """Integrate one step, store ``z⁺`` and return the step-mean rate ``ż̄``.
 
         Args:

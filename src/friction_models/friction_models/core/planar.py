@@ -16,7 +16,7 @@ transport with the same code.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Literal, NamedTuple, Optional, TypeVar
+from typing import Literal, NamedTuple, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -143,7 +143,7 @@ def transport_wrench(fx: _T, fy: _T, tau: _T, a: Sequence[float] | NDArray[np.fl
 
 def centre_of_rotation(vx: float, vy: float, omega: float,
                        at: Sequence[float] = (0.0, 0.0),
-                       omega_min: float = 1e-10) -> Optional[tuple[float, float]]:
+                       omega_min: float = 1e-10) -> tuple[float, float] | None:
     """Instantaneous centre of rotation of a twist given at point ``at`` (spec §1).
 
     Args:

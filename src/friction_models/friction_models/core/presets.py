@@ -17,15 +17,22 @@ the object's extent between the pads)::
         ← width →
 
 Per-finger contact parameters (:class:`ContactPreset`) use the estimator's quantities
-(control_and_estimation spec §3.1): Coulomb ``mu_c``, static ``mu_s`` (≥ mu_c), viscous
+(control_and_estimation §3.1): Coulomb ``mu_c``, static ``mu_s`` (≥ mu_c), viscous
 ``mu_v`` [1/(m/s)] and the torsional radius ``r`` [m] of the ellipsoidal limit surface, which
-is the characteristic radius ``r_a`` of the friction models (friction_models spec §6.1).
+is the characteristic radius ``r_a`` of the friction models (friction_models §6.1).
 
-The four **reference objects** (plastic, wood, case, cardboard) carry the per-finger estimates
-of ``shared/data/contact_estimates_reference.csv`` (spec §3.9: simulation parameter sets, not
-accuracy figures). The reference data hold no masses or sizes: the geometry below is an
-assumption for the simulation (hand-sized boxes, CoM at the box centre). The same values are
-in ``config/sim_presets.yaml``; a test keeps both in agreement.
+The four **reference objects** (plastic, wood, case, cardboard) are defined once, in the YAML
+file ``reference_objects.yaml`` next to this module (`REFERENCE_FILE`, read by
+:func:`reference_presets`). They carry the per-finger estimates of the reference data
+(``docs/data/contact_estimates_reference.csv``; spec §3.9: simulation parameter sets, not
+accuracy figures); their geometry is an assumption for the simulation (hand-sized boxes, CoM
+at the box centre).
+
+**Adding an object needs no code.** Write it as a YAML entry, either in the package's
+``config/sim_presets.yaml`` (the ``sim_gripper`` node's default file) or in a file of your
+own passed as the node's ``presets_file`` parameter or ``slip_evaluate --presets-file``.
+:func:`load_presets` adds the file's objects to the reference objects (an entry with a
+reference object's name replaces it), so nothing needs to be kept in sync.
 
 User presets come from YAML (:func:`load_presets`)::
 
@@ -45,10 +52,13 @@ User presets come from YAML (:func:`load_presets`)::
 """
 from __future__ import annotations
 
+import functools
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field, fields
 from pathlib import Path
-from typing import Any, Mapping, Union
+from types import MappingProxyType
+from typing import Any
 
 import yaml
 
@@ -58,7 +68,7 @@ __all__ = [
     'ContactPreset',
     'ObjectPreset',
     'PresetError',
-    'REFERENCE_OBJECTS',
+    'REFERENCE_FILE',
     'load_presets',
     'preset_from_dict',
     'reference_presets',
@@ -204,40 +214,24 @@ def _box_inertia(mass: float, width: float, height: float) -> float:
     return mass * (width * width + height * height) / 12.0
 
 
-def _reference(name: str, mass: float, width: float, below: float, above: float,
-               thickness: float, f1: tuple[float, float, float, float],
-               f2: tuple[float, float, float, float]) -> ObjectPreset:
-    return ObjectPreset(
-        name=name, mass=mass, inertia=_box_inertia(mass, width, below + above),
-        com_offset=(0.0, 0.5 * (above - below)), width=width, height_below=below,
-        height_above=above, thickness=thickness, surface='circle',
-        finger_1=ContactPreset(*f1), finger_2=ContactPreset(*f2), table_mu=0.5)
+#: The file that defines the reference objects (installed with the package).
+REFERENCE_FILE = Path(__file__).with_name('reference_objects.yaml')
 
 
-#: The four reference objects. Contact values (mu_c, mu_s, mu_v [1/(m/s)], r [m]) are the
-#: per-finger estimates of ``shared/data/contact_estimates_reference.csv`` (rounded to the
-#: precision that matters); geometry and mass are simulation assumptions (uniform boxes).
-REFERENCE_OBJECTS: Mapping[str, ObjectPreset] = {
-    'plastic': _reference('plastic', 0.12, 0.070, 0.060, 0.040, 0.050,
-                          (0.354889, 0.4083, 11.511481, 0.00769),
-                          (0.364794, 0.4329, 4.453690, 0.005753)),
-    # wood, finger 2: the CSV's r = 0.19 mm is a failed rotational fit (spec §3.9); the
-    # simulation uses 7.147 mm, finger 1's value on the same object and pad material.
-    'wood': _reference('wood', 0.20, 0.050, 0.070, 0.050, 0.045,
-                       (0.459095, 0.4608, -1.674135, 0.007147),
-                       (0.404418, 0.4503, -1.068194, 0.007147)),
-    'case': _reference('case', 0.15, 0.070, 0.090, 0.070, 0.040,
-                       (0.538393, 0.5384, -0.363302, 0.005715),
-                       (0.467251, 0.4673, 1.410544, 0.003411)),
-    'cardboard': _reference('cardboard', 0.08, 0.080, 0.080, 0.060, 0.060,
-                            (0.513560, 0.5178, 1.323279, 0.00484),
-                            (0.472721, 0.5045, 1.086284, 0.006296)),
-}
+@functools.cache
+def _reference_objects() -> Mapping[str, ObjectPreset]:
+    """The reference objects of `REFERENCE_FILE`, read once (immutable)."""
+    return MappingProxyType(load_presets(REFERENCE_FILE, include_reference=False))
 
 
 def reference_presets() -> dict[str, ObjectPreset]:
-    """A fresh dict of the four reference objects."""
-    return dict(REFERENCE_OBJECTS)
+    """A fresh dict of the four reference objects (plastic, wood, case, cardboard), as
+    defined in `REFERENCE_FILE` — their only definition.
+
+    Raises:
+        PresetError: The installed file is missing or invalid.
+    """
+    return dict(_reference_objects())
 
 
 _OBJECT_KEYS = {'mass', 'inertia', 'com_offset', 'width', 'height_below', 'height_above',
@@ -313,7 +307,7 @@ def preset_from_dict(name: str, data: Mapping[str, Any]) -> ObjectPreset:
     return preset
 
 
-def load_presets(yaml_path: Union[str, Path], *,
+def load_presets(yaml_path: str | Path, *,
                  include_reference: bool = True) -> dict[str, ObjectPreset]:
     """Load presets from a YAML file with a top-level ``presets:`` mapping.
 

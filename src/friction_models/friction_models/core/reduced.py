@@ -34,7 +34,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import NamedTuple, Optional, Union
+from typing import NamedTuple, Union
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -62,7 +62,7 @@ class _ContactGeometry(NamedTuple):
     """
 
     surface: ContactSurface
-    table: Optional[LimitSurface]
+    table: LimitSurface | None
     r_a: float
 
     @property
@@ -82,8 +82,8 @@ class _ContactGeometry(NamedTuple):
 
 
 def _resolve_geometry(surface: ContactSurface, limit_surface: LimitSurfaceOption, n_ls: int,
-                      cache: Optional[LimitSurfaceCache], progress: Optional[ProgressCallback],
-                      previous: Optional[_ContactGeometry] = None) -> _ContactGeometry:
+                      cache: LimitSurfaceCache | None, progress: ProgressCallback | None,
+                      previous: _ContactGeometry | None = None) -> _ContactGeometry:
     """Table and radius for ``surface``; reuse ``previous`` when only the size changed."""
     if previous is not None and previous.surface.same_shape_as(surface):
         ratio = surface.cell_size / previous.surface.cell_size
@@ -131,8 +131,8 @@ class ReducedPlanarLuGre:
     def __init__(self, surface: ContactSurface, params: LuGreParams = DEFAULT_PARAMS, *,
                  limit_surface: LimitSurfaceOption = True, elasto_plastic: bool = True,
                  integrator: str = 'exponential', rate_limiter: bool = False, n_ls: int = 20,
-                 cache: Optional[LimitSurfaceCache] = None, f_n: float = 1.0,
-                 progress: Optional[ProgressCallback] = None,
+                 cache: LimitSurfaceCache | None = None, f_n: float = 1.0,
+                 progress: ProgressCallback | None = None,
                  force_from: str = 'pre_update') -> None:
         self._params = params
         self._force_from: ForceFrom = check_force_from(force_from)
@@ -177,7 +177,7 @@ class ReducedPlanarLuGre:
         return self._geo.surface
 
     @property
-    def limit_surface(self) -> Optional[LimitSurface]:
+    def limit_surface(self) -> LimitSurface | None:
         """The limit-surface table, or ``None`` for the ellipsoid variant."""
         return self._geo.table
 
@@ -228,7 +228,7 @@ class ReducedPlanarLuGre:
             raise ValueError(f'normal force must be finite and >= 0 N, got {f_n!r}')
         self._f_n = f
 
-    def set_pressure(self, surface: Union[ContactSurface, ArrayLike]) -> None:
+    def set_pressure(self, surface: ContactSurface | ArrayLike) -> None:
         """Replace the pressure map (spec §6.5).
 
         Same normalised shape: only r_a, the CoP and J_c are rescaled. A new shape rebuilds
@@ -294,7 +294,7 @@ class ReducedPlanarLuGre:
             return vx, vy, om
         raise ValueError(f"frame must be 'pad' or 'cop', got {frame!r}")
 
-    def step(self, twist: TwistLike, dt: float, f_n: Optional[float] = None,
+    def step(self, twist: TwistLike, dt: float, f_n: float | None = None,
              frame: Frame = 'pad') -> Wrench:
         """Advance the three bristle states by ``dt`` and return the friction wrench.
 
@@ -431,7 +431,7 @@ class ReducedPlanarLuGre:
         return w * vn - k * za
 
     def steady_state(self, twist: TwistLike, frame: Frame = 'pad',
-                     f_n: Optional[float] = None) -> Wrench:
+                     f_n: float | None = None) -> Wrench:
         """Steady sliding wrench (``z = z_ss``, ``ż = 0``) for a constant twist.
 
         Args:
@@ -487,12 +487,12 @@ class ReducedPlanarLuGreBatch:
             larger batches use the vectorised path. Both give the same numbers.
     """
 
-    def __init__(self, surfaces: Union[ContactSurface, Sequence[ContactSurface]],
-                 params: LuGreParams = DEFAULT_PARAMS, *, n: Optional[int] = None,
+    def __init__(self, surfaces: ContactSurface | Sequence[ContactSurface],
+                 params: LuGreParams = DEFAULT_PARAMS, *, n: int | None = None,
                  limit_surface: bool = True, elasto_plastic: bool = True,
                  integrator: str = 'exponential', rate_limiter: bool = False, n_ls: int = 20,
-                 cache: Optional[LimitSurfaceCache] = None,
-                 f_n: Union[float, ArrayLike] = 1.0, scalar_threshold: int = 16,
+                 cache: LimitSurfaceCache | None = None,
+                 f_n: float | ArrayLike = 1.0, scalar_threshold: int = 16,
                  force_from: str = 'pre_update') -> None:
         if isinstance(surfaces, ContactSurface):
             if n is None:
@@ -519,7 +519,7 @@ class ReducedPlanarLuGreBatch:
         self._pack()
         self._z = np.zeros((3, self._size))
         self._f_n = np.zeros(self._size)
-        self._scalar: Optional[list[ReducedPlanarLuGre]] = None
+        self._scalar: list[ReducedPlanarLuGre] | None = None
         if self._size <= scalar_threshold:
             self._scalar = [self._scalar_model(g) for g in self._geos]
         self.set_normal_force(f_n)
@@ -600,7 +600,7 @@ class ReducedPlanarLuGreBatch:
         else:
             self._z[:] = za.T
 
-    def reset(self, which: Optional[ArrayLike] = None) -> None:
+    def reset(self, which: ArrayLike | None = None) -> None:
         """Zero the states of all contacts, or of the contacts selected by ``which``."""
         z = self.state
         if which is None:
@@ -614,7 +614,7 @@ class ReducedPlanarLuGreBatch:
         """Normal forces [N], (N,) copy."""
         return self._f_n.copy()
 
-    def set_normal_force(self, f_n: Union[float, ArrayLike]) -> None:
+    def set_normal_force(self, f_n: float | ArrayLike) -> None:
         """Set the normal force(s) [N], scalar or (N,), all ≥ 0; states are untouched."""
         f = np.broadcast_to(np.asarray(f_n, dtype=np.float64), (self._size,))
         if not (np.all(np.isfinite(f)) and np.all(f >= 0.0)):
@@ -695,7 +695,7 @@ class ReducedPlanarLuGreBatch:
         u *= 0.5 * (1.0 - c)
         return u, yn, hn
 
-    def step(self, twists: ArrayLike, dt: float, f_n: Optional[Union[float, ArrayLike]] = None,
+    def step(self, twists: ArrayLike, dt: float, f_n: float | ArrayLike | None = None,
              frame: Frame = 'pad') -> BatchWrench:
         """Advance all N contacts by ``dt``.
 

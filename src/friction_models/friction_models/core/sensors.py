@@ -27,16 +27,17 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Iterator, Optional, Union
+from typing import TypeAlias, Union
+from collections.abc import Iterator
 
 import numpy as np
 
 from slip_cell_common.core.param_schema import ranged_field as _f
+from slip_gripper_driver.core.gripper_records import LineResult
 from slip_velocity_sensor.core.chip_model import ChipModelParams, CountQuantizer
 from slip_velocity_sensor.core.fusion import FusionParams, RigidBodyFusion
 
 __all__ = [
-    'FtBias',
     'FtSample',
     'FtSensor',
     'FtSensorParams',
@@ -102,38 +103,9 @@ class RateParams:
 
 
 # ---------------------------------------------------------------------------- events
-@dataclass(frozen=True, slots=True)
-class TelemetrySample:
-    """One gripper telemetry line and the inner-loop step it triggered.
-
-    Attributes:
-        stamp: Acquisition time [s].
-        motor_angle_rad: Motor angle as the firmware prints it [rad] (encoder-quantised,
-            4 decimals, relative to power-up).
-        force_target: Controller target ``F_d`` after limits [N] (NaN while homing).
-        force_cmd: Force command ``u`` [N] (positive squeezes).
-        voltage_cmd: Voltage sent to the motor [V] (negative closes).
-        measured_force: ``F_m`` [N]; NaN unless biased and fresh.
-        error: ``F_d − F_m`` [N] (0 in bypass).
-        integral: Integral action [N].
-        gain_scale: Gain-scheduling factor s [-].
-        closed_loop: The PI loop was active.
-        bypass_reason: `BypassReason` value (0 = closed loop).
-        homing: This tick was driven by the homing sequence (the controller did not run).
-    """
-
-    stamp: float
-    motor_angle_rad: float
-    force_target: float
-    force_cmd: float
-    voltage_cmd: float
-    measured_force: float
-    error: float
-    integral: float
-    gain_scale: float
-    closed_loop: bool
-    bypass_reason: int
-    homing: bool = False
+#: One gripper telemetry line as the driver's bridge handled it: the status after the line,
+#: the controller step (None while homing) and the command written (`GripperBridge.on_line`).
+TelemetrySample: TypeAlias = LineResult
 
 
 @dataclass(frozen=True, slots=True)
@@ -144,13 +116,14 @@ class FtSample:
         stamp: Acquisition time [s].
         finger: 1 or 2.
         raw: ``(Fx, Fy, Fz, Tx, Ty, Tz)`` as measured [N, N·m] (offset and noise included).
-        biased: ``raw`` minus the host-side bias, or None before the first bias completed.
+        biased: ``raw`` minus the host-side bias (the driver's), or None before the first
+            bias completed.
     """
 
     stamp: float
     finger: int
     raw: Vector6
-    biased: Optional[Vector6]
+    biased: Vector6 | None
 
 
 @dataclass(frozen=True, slots=True)
@@ -262,53 +235,6 @@ class FtSensor:
         cx, cy = cop
         return (fx + n[0], fy + n[1], fz + n[2], cy * fz - d * fy + n[3],
                 d * fx - cx * fz + n[4], -wrench[2] + n[5])
-
-
-class FtBias:
-    """Host-side bias of both sensors: average the raw samples of a window (≥ N samples).
-
-    Args:
-        params: Window length and minimum sample count.
-    """
-
-    def __init__(self, params: FtSensorParams) -> None:
-        self.params = params
-        self.bias: list[Optional[Vector6]] = [None, None]
-        self._end = math.nan
-        self._sums: list[list[float]] = [[0.0] * 6, [0.0] * 6]
-        self._counts = [0, 0]
-        self.collecting = False
-
-    @property
-    def biased(self) -> bool:
-        """Both sensors have a bias."""
-        return self.bias[0] is not None and self.bias[1] is not None
-
-    def start(self, t: float) -> float:
-        """Start a window at ``t`` [s]; returns its nominal end [s]."""
-        self._end = t + self.params.bias_duration
-        self._sums = [[0.0] * 6, [0.0] * 6]
-        self._counts = [0, 0]
-        self.collecting = True
-        return self._end
-
-    def add(self, finger: int, t: float, raw: Vector6) -> bool:
-        """Add one raw sample; returns True when this sample completed the bias."""
-        k = finger - 1
-        s = self._sums[k]
-        for j in range(6):
-            s[j] += raw[j]
-        self._counts[k] += 1
-        n = min(self._counts)
-        if finger == 2 and t >= self._end - 1e-12 and n >= self.params.bias_min_samples:
-            for kk in (0, 1):
-                c = self._counts[kk]
-                ss = self._sums[kk]
-                self.bias[kk] = (ss[0] / c, ss[1] / c, ss[2] / c, ss[3] / c, ss[4] / c,
-                                 ss[5] / c)
-            self.collecting = False
-            return True
-        return False
 
 
 # ---------------------------------------------------------------------------- velocity

@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: Apache-2.0
-"""The simulated gripper cell: plant, sensors and the shared inner grasp-force loop (ROS-free).
+"""The simulated gripper cell: plant, sensors and the driver's own host side (ROS-free).
 
 `SimCell` is what the ``sim_gripper`` node (and the in-process :mod:`.harness`) drive. It owns
 
@@ -7,20 +7,23 @@
   voltage-driven actuator) on a fixed step ``physics_dt``;
 * the sensors (:mod:`.sensors`) at their real rates: F/T 1 kHz per finger, velocity sensor
   ≈ 120 Hz per finger, gripper telemetry 500 Hz;
-* the host side of the real gripper driver that matters to the physics, using the driver's
-  own cores, not copies: on every telemetry line the opening-rate observer
-  (:class:`~slip_gripper_driver.core.observer.RateObserver`), the inner grasp-force loop
-  (:class:`~slip_gripper_driver.core.force_control.GraspForceController`) and the voltage of
-  the command encoding (:func:`~slip_gripper_driver.core.protocol.encode_force_command`:
-  ceiling, ±20 V clip, 0.01 V rounding; evaluated without building and re-parsing the bytes,
-  see `encoded_voltage`); homing either instant or the real sequence
-  (:class:`~slip_gripper_driver.core.homing.Homing`); host-side F/T bias.
+* the gripper driver's host side itself, not a copy: a
+  :class:`~slip_gripper_driver.core.bridge.GripperBridge` gets every telemetry line as the
+  firmware prints it (the encoder angle with four decimals) and writes ``T<volts>`` commands
+  that the simulated firmware applies, so the line parser, opening-rate observer, homing,
+  inner grasp-force loop, command encoding, the grasp-command gate (stamps, timeouts, clock
+  skew, arming), ``gripper/stop`` and the status and motor-command records are the driver's;
+  the F/T samples pass the driver's host-side bias
+  (:class:`~slip_gripper_driver.core.ft_bias.BiasAccumulator`) on their way to the bridge.
+  Homing is either instant (the known limits are adopted) or the real sequence.
 
 Time: ``t = n·physics_dt`` (n integer steps since construction, never reset). Sensors fire on
 the first physics step at or after their tick time and are stamped with that step's time;
 their tick times advance by exact periods (no drift). Within one step the order is F/T,
 velocity, telemetry, so the inner loop always sees the F/T sample of the same instant.
-The voltage computed on a telemetry line applies from that instant until the next line.
+The voltage written on a telemetry line applies from that instant until the next command.
+The firmware streams from power-up: one telemetry line at t = 0 opens the bridge's session
+(it produces no event).
 
 Determinism: all randomness (F/T noise, chip count noise) comes from generators spawned from
 ``SimParams.seed``; nothing reads a clock. Two cells with the same parameters and the same
@@ -30,39 +33,39 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Mapping, Optional
+from collections.abc import Mapping
 
 import numpy as np
 
-from slip_gripper_driver.core.force_control import (BypassReason, ForceControlParams,
-                                                    ForceLoopInput, ForceLoopOutput,
-                                                    GraspForceController)
 from slip_cell_common.core.frames import FrameParams
-from slip_gripper_driver.core.homing import Homing, HomingParams, homing_refusal
-from slip_gripper_driver.core.observer import ObserverParams, RateObserver
 from slip_cell_common.core.param_schema import ParameterError, check_value, specs
-from slip_gripper_driver.core.protocol import force_to_voltage
+from slip_gripper_driver.core.bridge import GripperBridge
+from slip_gripper_driver.core.bridge_params import BridgeParams, LinkParams
+from slip_gripper_driver.core.force_control import ForceControlParams
+from slip_gripper_driver.core.ft_bias import BIAS_TIMEOUT_S, BiasParams, BiasState, bias_outcome
+from slip_gripper_driver.core.gripper_records import CommandResult, GripperStatusSnapshot
+from slip_gripper_driver.core.homing import HomingParams, HomingResult
+from slip_gripper_driver.core.observer import ObserverParams
+from slip_gripper_driver.core.protocol import ActuatorParams, command_voltage
 
+from .actuator import SimActuatorParams
 from .limit_surface import LimitSurfaceCache
-from .plant import FrictionSettings, Plant, SimActuatorParams, TableParams
+from .pad_contact import FrictionSettings
+from .plant import Plant
 from .presets import ContactPreset, ObjectPreset, PresetError, select_preset
-from .sensors import (FtBias, FtSample, FtSensor, FtSensorParams, MotorEncoder, RateParams,
-                      SimEvents, TelemetrySample, VelocitySensor, VelocitySensorParams)
+from .sensors import (FtSample, FtSensor, FtSensorParams, MotorEncoder, RateParams, SimEvents,
+                      VelocitySensor, VelocitySensorParams)
 from .surfaces import STANDARD_SURFACES, standard_surface
+from .table import TableParams
 
 __all__ = [
-    'MAX_COMMAND_CLOCK_SKEW_S',
     'SimCell',
     'SimParams',
     'SimState',
-    'SimStatus',
-    'encoded_voltage',
+    'bridge_params',
 ]
 
 _NAN = math.nan
-
-#: Commands stamped further in the future than this are rejected (as the driver does) [s].
-MAX_COMMAND_CLOCK_SKEW_S = 0.5
 
 
 @dataclass(frozen=True)
@@ -76,7 +79,7 @@ class SimParams:
     ``rates.telemetry``, ``rates.ft``, ``seed``).
 
     Step size: the contact coupling is implicit (see :mod:`.plant`), so any ``physics_dt`` up
-    to the F/T period is stable. 1e-4 s (the default, friction_models spec §14) resolves the
+    to the F/T period is stable. 1e-4 s (the default, friction_models §14) resolves the
     contact dynamics; 1e-3 s reproduces the same slips, accelerations and exploration results
     to a few tenths of a percent (tests compare both) at about six times the speed — the
     choice for harness runs and Monte-Carlo studies. Sensor stamps fall on physics steps, so
@@ -155,11 +158,10 @@ class SimParams:
         if a.max_phase_voltage > a.voltage_limit:
             problems.append(f'actuator.max_phase_voltage {a.max_phase_voltage} V exceeds '
                             f'actuator.voltage_limit {a.voltage_limit} V')
-        for group in ('force_control', 'homing', 'observer'):
-            try:
-                getattr(self, group).validate()
-            except ParameterError as exc:
-                problems.append(f'{group}: {exc}')
+        try:
+            bridge_params(self).validate()   # the driver's own checks of the host side
+        except ParameterError as exc:
+            problems.append(str(exc))
         if problems:
             raise ParameterError('invalid SimParams: ' + '; '.join(problems))
 
@@ -224,43 +226,34 @@ class SimState:
     energy: float
 
 
-@dataclass(frozen=True, slots=True)
-class SimStatus:
-    """The gripper-status fields a driver publishes (``slip_msgs/GripperStatus``, SI)."""
-
-    stamp: float
-    motor_angle: float
-    opening: float
-    opening_rate: float
-    voltage_cmd: float
-    force_cmd: float
-    force_target: float
-    measured_grasp_force: float
-    homed: bool
-    ft_biased: bool
-    in_contact: bool
-    command_expired: bool
-
-
 def _finite(*values: float) -> bool:
     return all(isinstance(v, (int, float)) and math.isfinite(v) for v in values)
 
 
-def encoded_voltage(force_n: float, newton_per_volt: float, max_close_force_n: float,
-                    max_open_force_n: float, voltage_limit_v: float) -> float:
-    """The voltage [V] `encode_force_command` sends for a force command [N], without the bytes.
+def bridge_params(params: SimParams) -> BridgeParams:
+    """The driver parameters the cell runs its `GripperBridge` with.
 
-    Same order (HW-3): force ceiling ``[−max_open, max_close]``, ``V = −F/k_FV``, ±limit clip,
-    0.01 V rounding, ``−0.00`` sent as 0. ``round(v, 2)`` and the ``.2f`` format both round
-    the exact binary value correctly (half-even), so this equals parsing the command back;
-    a test checks it against the driver's encoder. Non-finite forces give 0 V (the driver
-    refuses to send them).
+    Actuator constants, observer, homing and force loop are the cell's; the safe voltage is
+    0 V and commands without a timeout stay valid until replaced (the driver's defaults). The
+    link watchdog never fires in simulation (telemetry does not stop); its stale threshold is
+    stretched to at least two telemetry periods so that ``link_ok`` holds at slow rates.
     """
-    if not math.isfinite(force_n):
-        return 0.0
-    clipped = min(max(force_n, -max_open_force_n), max_close_force_n)
-    v = force_to_voltage(clipped, newton_per_volt)
-    return round(min(max(v, -voltage_limit_v), voltage_limit_v), 2) + 0.0   # −0.0 → 0.0
+    a = params.actuator
+    rate = params.rates.telemetry
+    period = 1.0 / rate if rate > 0.0 else 0.0     # an invalid rate is reported by validate
+    stale = min(1.0, max(LinkParams().stale_after, 2.0 * period))
+    return BridgeParams(
+        actuator=ActuatorParams(newton_per_volt=a.newton_per_volt,
+                                voltage_limit=a.voltage_limit,
+                                opening_per_rad=a.opening_per_rad, safe_voltage=0.0),
+        link=LinkParams(stale_after=stale, fault_after=max(LinkParams().fault_after, stale)),
+        observer=params.observer, homing=params.homing, force_control=params.force_control)
+
+
+def bias_params(params: SimParams) -> BiasParams:
+    """The host-side bias settings of the cell (``ft.bias_duration``, ``ft.bias_min_samples``;
+    samples skipped first as the driver's default)."""
+    return BiasParams(duration=params.ft.bias_duration, min_samples=params.ft.bias_min_samples)
 
 
 class SimCell:
@@ -294,26 +287,17 @@ class SimCell:
                             surface=params.surface, grid_n=params.grid_n,
                             gravity=params.gravity, cache=self._cache)
         a = params.actuator
-        self._k_open = a.opening_per_rad
         # Power-up at the open stop: the firmware angle is 0 there.
         self._theta_closed = -a.stroke / a.opening_per_rad
         self._encoder = MotorEncoder(a.encoder_counts)
-        self._controller = GraspForceController(params.force_control)
-        self._observer = RateObserver(params.observer)
-        self._homing = Homing(params.homing, a.opening_per_rad)
-        self._homed_closed = _NAN
-        self._stroke_est = _NAN
         self._ft = FtSensor(params.ft, params.frames.pad_offset, np.random.default_rng(seeds[0]))
-        self._bias = FtBias(params.ft)
+        bias = bias_params(params)
+        self._bias = (bias.accumulator(BIAS_TIMEOUT_S), bias.accumulator(BIAS_TIMEOUT_S))
         vel_rng = np.random.default_rng(seeds[1])
         self._vel = (VelocitySensor(1, params.velocity_sensor,
                                     self._plant.pads[0].p_mid_to_pad, vel_rng),
                      VelocitySensor(2, params.velocity_sensor,
                                     self._plant.pads[1].p_mid_to_pad, vel_rng))
-        fc = params.force_control
-        # encoded_voltage constants: k_FV, force ceiling (close, open), voltage clip.
-        self._encoding = (a.newton_per_volt, fc.max_command_force, fc.max_open_force,
-                          a.voltage_limit)
         self._period_tel = 1.0 / params.rates.telemetry
         self._period_ft = 1.0 / params.rates.ft
         self._period_vel = 1.0 / params.velocity_sensor.rate
@@ -328,18 +312,13 @@ class SimCell:
         self._k_vel = [0, 0]
         self._vel_base = [self._vel_first[0], self._vel_first[1]]
         self._next_vel = [self._vel_base[0], self._vel_base[1]]
-        # Host-side state the driver keeps.
-        self._target = 0.0
-        self._target_stamp = 0.0
-        self._target_timeout = 0.0
-        self._stopped = False
-        self._fz = [_NAN, _NAN]
-        self._ft_stamp = [_NAN, _NAN]
-        self._angle = self._encoder.read(self._plant.motor_angle(self._theta_closed))
-        self._rate = _NAN
         self._voltage = 0.0
-        self._last_out: Optional[ForceLoopOutput] = None
         self._reset_t = 0.0
+        # The driver's host side, connected and activated at power-up (armed).
+        self._bridge = GripperBridge(bridge_params(params), self._write)
+        self._bridge.on_connected(0.0, 'simulation')
+        self._bridge.activate(0.0)
+        self._bridge.on_line(self._telemetry_line(), False, 0.0)
 
     # ------------------------------------------------------------------ properties
     @property
@@ -365,22 +344,32 @@ class SimCell:
     @property
     def ft_biased(self) -> bool:
         """Both F/T sensors carry a host-side bias."""
-        return self._bias.biased
+        return self._bias[0].biased and self._bias[1].biased
 
     @property
     def bias_in_progress(self) -> bool:
         """A host-side F/T bias is being collected."""
-        return self._bias.collecting
+        return (self._bias[0].state == BiasState.COLLECTING
+                or self._bias[1].state == BiasState.COLLECTING)
+
+    def bias_result(self) -> tuple[bool, str]:
+        """Outcome of the last bias (as the driver's ``gripper/bias_ft`` reports it)."""
+        return bias_outcome((('finger 1', self._bias[0]), ('finger 2', self._bias[1])))
 
     @property
     def homing_active(self) -> bool:
         """The homing sequence is running."""
-        return self._homing.active
+        return self._bridge.homing.active
 
     @property
     def homed(self) -> bool:
         """The gripper limits are known (opening and stroke available)."""
-        return math.isfinite(self._homed_closed)
+        return self._bridge.homing.homed
+
+    @property
+    def bridge(self) -> GripperBridge:
+        """The driver's host side the cell runs (diagnostics, tests)."""
+        return self._bridge
 
     @property
     def arm_moving(self) -> bool:
@@ -442,25 +431,15 @@ class SimCell:
         self._k_ft += 1
         self._next_ft = (self._k_ft + 1) * self._period_ft
         plant = self._plant
-        bias = self._bias
         sample = self._ft.sample
+        on_wrench = self._bridge.on_ft_wrench
         in_contact = plant.in_contact
-        fz, stamps, out = self._fz, self._ft_stamp, ev.ft
+        out = ev.ft
         for k, pad in enumerate(plant.pads):
             f = pad.f_n if in_contact else plant.actuator.f_stop
             raw = sample(k + 1, pad.w, f, pad.cop)
-            if bias.collecting:
-                bias.add(k + 1, t, raw)
-            b = bias.bias[k]
-            if b is not None:
-                r0, r1, r2, r3, r4, r5 = raw
-                b0, b1, b2, b3, b4, b5 = b
-                biased = (r0 - b0, r1 - b1, r2 - b2, r3 - b3, r4 - b4, r5 - b5)
-                fz[k] = r2 - b2
-            else:
-                biased = None
-                fz[k] = raw[2]
-            stamps[k] = t
+            biased = self._bias[k].add(t, raw)
+            on_wrench(k + 1, t, biased)
             out.append(FtSample(t, k + 1, raw, biased))
 
     def _vel_tick(self, k: int, t: float, ev: SimEvents) -> None:
@@ -471,129 +450,81 @@ class SimCell:
     def _tel_tick(self, t: float, ev: SimEvents) -> None:
         self._k_tel += 1
         self._next_tel = (self._k_tel + 1) * self._period_tel
+        ev.telemetry.append(self._bridge.on_line(self._telemetry_line(), False, t))
+
+    def _telemetry_line(self) -> bytes:
+        """The line the firmware prints now: the encoder angle [rad] with four decimals."""
         angle = self._encoder.read(self._plant.motor_angle(self._theta_closed))
-        self._angle = angle
-        self._rate = self._observer.update(t, angle * self._k_open).rate
-        if self._homing.active:
-            a = self._params.actuator
-            step = self._homing.step(t, angle)
-            voltage = step.voltage_v if step.voltage_v is not None else 0.0
-            if step.finished and self._homing.result is not None:
-                self._homed_closed = self._homing.result.theta_closed
-                self._stroke_est = self._homing.result.stroke
-            self._set_voltage(voltage)
-            force_cmd = -a.newton_per_volt * voltage
-            ev.telemetry.append(TelemetrySample(t, angle, _NAN, force_cmd, voltage, _NAN, 0.0,
-                                                0.0, 1.0, False, int(BypassReason.SAFE_STATE),
-                                                True))
-            return
-        homed = self.homed
-        biased = self._bias.biased
-        if homed:
-            opening = (angle - self._homed_closed) * self._k_open
-            rate, stroke = self._rate, self._stroke_est
-        else:
-            opening = rate = stroke = _NAN
-        fz, ft_stamp = self._fz, self._ft_stamp
-        out = self._controller.step(ForceLoopInput(
-            t, self._target, self._target_stamp, self._target_timeout, fz[0], fz[1],
-            ft_stamp[0], ft_stamp[1], biased, homed, opening, rate, stroke, self._stopped))
-        self._last_out = out
-        voltage = 0.0 if self._stopped else encoded_voltage(out.force_cmd, *self._encoding)
-        self._set_voltage(voltage)
-        ev.telemetry.append(TelemetrySample(
-            t, angle, out.force_target, out.force_cmd, voltage, out.measured_force, out.error,
-            out.integral, out.gain_scale, out.closed_loop, int(out.bypass_reason)))
+        return f'{angle:.4f}'.encode('ascii')
+
+    def _write(self, command: bytes) -> bool:
+        """The bridge's writer: the firmware applies the voltage until the next command."""
+        self._set_voltage(command_voltage(command))
+        return True
 
     def _set_voltage(self, voltage: float) -> None:
         self._voltage = voltage
         self._plant.voltage = voltage
 
     # ------------------------------------------------------------------ commands
-    def command_grasp_force(self, force_n: float, stamp: float,
-                            timeout_s: float) -> tuple[bool, str]:
-        """Set the inner loop's grasp-force target (as ``gripper/grasp_force_cmd``).
+    def command_grasp_force(self, force_n: float, stamp: float, timeout_s: float,
+                            source: int = 0) -> CommandResult:
+        """A ``gripper/grasp_force_cmd`` arriving now, through the driver's command gate.
 
         Args:
             force_n: Per-finger grasp force [N]; positive squeezes, negative opens.
             stamp: Command stamp [s] (0 = now).
             timeout_s: Expiry after ``stamp`` [s]; 0 = valid until replaced.
+            source: ``SOURCE_*`` constant of the command (reported only).
 
         Returns:
-            ``(accepted, message)``; rejected values are never used.
+            ``(accepted, reason)``; rejected values are never used.
         """
-        a = self._params.actuator
-        bound = a.voltage_limit * a.newton_per_volt
-        if not _finite(force_n):
-            return False, f'force {force_n!r} N is not finite'
-        if abs(force_n) > bound:
-            return False, (f'|force| {abs(force_n):.3g} N exceeds the actuator range '
-                           f'{bound:.1f} N')
-        if not (_finite(timeout_s) and timeout_s >= 0.0):
-            return False, f'timeout {timeout_s!r} s is not finite and >= 0'
-        if not _finite(stamp):
-            return False, f'stamp {stamp!r} s is not finite'
-        if stamp > self._t + MAX_COMMAND_CLOCK_SKEW_S:
-            return False, (f'stamp {stamp:.3f} s is {stamp - self._t:.3f} s in the future '
-                           f'(clock mismatch?)')
-        self._target = float(force_n)
-        self._target_stamp = float(stamp) if stamp != 0.0 else self._t
-        self._target_timeout = float(timeout_s)
-        self._stopped = False
-        fc = self._params.force_control
-        if not -fc.max_open_force <= force_n <= fc.max_grasp_force:
-            return True, (f'accepted; the controller clips {force_n:.2f} N to '
-                          f'[{-fc.max_open_force:.1f}, {fc.max_grasp_force:.1f}] N')
-        return True, 'accepted'
+        return self._bridge.set_grasp_force(force_n, self._t, stamp=stamp, timeout=timeout_s,
+                                            source=source)
 
     def stop(self) -> None:
-        """0 V from the next telemetry line on; the target is cleared to 0 N until the next
-        command (``gripper/stop``). A running homing sequence is aborted."""
-        if self._homing.active:
-            self._homing.abort('stop requested')
-        self._stopped = True
-        self._target = 0.0
-        self._target_stamp = self._t
-        self._target_timeout = 0.0
-        self._set_voltage(0.0)
+        """``gripper/stop``: 0 V now and the target cleared to 0 N until the next command; a
+        running homing sequence is aborted (the driver's `GripperBridge.stop`)."""
+        self._bridge.stop(self._t)
+
+    def arm(self) -> CommandResult:
+        """``gripper/arm``: re-arm, target cleared to 0 N (the driver's `GripperBridge.arm`)."""
+        return self._bridge.arm(self._t)
 
     def bias_ft(self) -> tuple[bool, str]:
-        """Start a host-side bias: average the next ``ft.bias_duration`` of raw samples of both
-        sensors (≥ ``ft.bias_min_samples`` each). Completes in sim time; then ``ft_biased``.
+        """Start a host-side bias of both sensors (the driver's window: ``ft.bias_duration`` of
+        samples after the first few, ≥ ``ft.bias_min_samples``). Completes in sim time; then
+        `bias_result`. Refused, as by the driver (`GripperBridge.bias_refusal`), while the
+        pads may be loaded.
         """
-        if self._bias.collecting:
+        if self.bias_in_progress:
             return False, 'a bias is already being collected'
-        end = self._bias.start(self._t)
+        refusal = self._bridge.bias_refusal(self._t)
+        if refusal is not None:
+            return False, f'bias refused: {refusal}'
+        for acc in self._bias:
+            acc.start(self._t)
+        p = self._bias[0]
+        end = self._t + p.duration_s + (p.settle_samples + 1) * self._period_ft
         note = ''
         if self._plant.in_contact:
             note = ' (warning: the pads touch the object; bias with the gripper open and empty)'
-        return True, f'bias started; completes at t = {end:.3f} s{note}'
+        return True, f'bias started; completes at t ≈ {end:.3f} s{note}'
 
-    def home(self) -> tuple[bool, str]:
+    def home(self) -> CommandResult:
         """Home the gripper (``gripper/home``); refuses on contact like the real driver.
 
-        ``homing_mode='instant'`` sets the limits at once; ``'sequence'`` runs the real
-        closing/opening stall sequence in sim time (with an object between the fingers it
-        squeezes the object and finds a wrong zero, as the real one does).
+        ``homing_mode='instant'`` adopts the true limits at once; ``'sequence'`` runs the
+        driver's closing/opening stall sequence in sim time (with an object between the
+        fingers it squeezes the object and finds a wrong zero, as the real one does).
         """
-        measured = self._measured_force()
-        refusal = homing_refusal(
-            link_ok=True, armed=True, busy=self._homing.active,
-            ft_checked=self._bias.biased and math.isfinite(measured),
-            grasp_force=measured,
-            contact_threshold=self._params.force_control.contact_threshold,
-            target_force=0.0 if self._stopped else self._target)
-        if refusal is not None:
-            return False, refusal
-        self._controller.reset()
         if self._params.homing_mode == 'sequence':
-            self._homed_closed = _NAN
-            self._stroke_est = _NAN
-            self._homing.start(self._t)
-            return True, 'homing started'
-        self._homed_closed = self._encoder.read(self._theta_closed)
-        self._stroke_est = self._params.actuator.stroke
-        return True, f'homed: stroke {self._stroke_est * 1e3:.2f} mm'
+            return self._bridge.start_homing(self._t)
+        a = self._params.actuator
+        closed = self._encoder.read(self._theta_closed)
+        return self._bridge.adopt_homing(
+            self._t, HomingResult(closed, closed + a.stroke / a.opening_per_rad, a.stroke))
 
     def move_gripper(self, lift: float, lateral: float, rotation: float,
                      duration: float) -> tuple[bool, str, float]:
@@ -634,7 +565,7 @@ class SimCell:
         self._plant.add_disturbance(fx, fy, torque, self._t + duration)
         return True, f'applied until t = {self._t + duration:.3f} s'
 
-    def reset(self, preset: Optional[str] = None,
+    def reset(self, preset: str | None = None,
               object_on_table: bool = True) -> tuple[bool, str]:
         """Reset the scene (sim time keeps increasing).
 
@@ -642,8 +573,9 @@ class SimCell:
         the gripper is at the pick-up pose. Otherwise the object starts already held in the
         air: gripper ``hold_height`` above the pick-up pose, fingers closed on the object with
         ``reset_grasp_force`` and that force as the active target. Bristles, the velocity
-        integrals, the inner loop and the scenario clock restart; target cleared; F/T bias and
-        homing are kept.
+        integrals and the scenario clock restart; on the host side a running homing is
+        aborted, observer and controller restart, the driver is armed with the target cleared;
+        F/T bias and homing limits are kept.
 
         Returns:
             ``(ok, message)``; an unknown or invalid preset is refused and nothing changes.
@@ -659,20 +591,16 @@ class SimCell:
                                f'fit the stroke {self._params.actuator.stroke} m')
             self._plant.set_preset(chosen)
         self._plant.reset(True)
-        self._controller.reset()
-        self._observer.reset()
-        if self._homing.active:
-            self._homing.abort('scene reset')
-        self._target = 0.0
-        self._target_stamp = self._t
-        self._target_timeout = 0.0
-        self._stopped = False
-        self._set_voltage(0.0)
-        self._reset_t = self._t
+        t = self._t
+        bridge = self._bridge
+        bridge.stop(t)    # aborts homing, clears the target, writes 0 V
+        bridge.reset(t)   # observer and controller restart
+        bridge.arm(t)     # leaves the stop: armed, target 0 N
+        self._reset_t = t
         for k, sensor in enumerate(self._vel):
-            sensor.reset(self._t)
+            sensor.reset(t)
             self._k_vel[k] = 0
-            self._vel_base[k] = self._t + self._vel_first[k]
+            self._vel_base[k] = t + self._vel_first[k]
             self._next_vel[k] = self._vel_base[k]
         if not object_on_table:
             self._pregrasp()
@@ -690,36 +618,14 @@ class SimCell:
         plant.actuator.place(plant.preset.thickness - f / p.actuator.contact_stiffness)
         plant.actuator.f_n = f
         plant.on_table = False
-        plant.corner_n = [0.0] * 4
-        self._target = f
-        self._target_stamp = self._t
-        self._target_timeout = 0.0
+        plant.table_contact.reset()
+        self._bridge.set_grasp_force(f, self._t)
         self._set_voltage(-f / p.actuator.newton_per_volt)
 
     # ------------------------------------------------------------------ read-outs
-    def _measured_force(self) -> float:
-        if not self._bias.biased:
-            return _NAN
-        stale = self._params.force_control.ft_stale_after
-        if any(not (self._t - s <= stale) for s in self._ft_stamp):
-            return _NAN
-        return -0.5 * (self._fz[0] + self._fz[1])
-
-    def status(self) -> SimStatus:
-        """Gripper-status fields as the driver publishes them (driver's view, not truth)."""
-        out = self._last_out
-        measured = self._measured_force()
-        homed = self.homed
-        return SimStatus(
-            stamp=self._t, motor_angle=self._angle,
-            opening=(self._angle - self._homed_closed) * self._k_open if homed else _NAN,
-            opening_rate=self._rate if homed else _NAN, voltage_cmd=self._voltage,
-            force_cmd=out.force_cmd if out is not None else _NAN,
-            force_target=out.force_target if out is not None else _NAN,
-            measured_grasp_force=measured, homed=homed, ft_biased=self._bias.biased,
-            in_contact=math.isfinite(measured) and
-            abs(measured) >= self._params.force_control.contact_threshold,
-            command_expired=out.command_expired if out is not None else False)
+    def status(self) -> GripperStatusSnapshot:
+        """Gripper status as the driver publishes it now (the driver's view, not truth)."""
+        return self._bridge.status(self._t)
 
     def state(self) -> SimState:
         """Ground truth (see `SimState`)."""

@@ -22,8 +22,7 @@ from __future__ import annotations
 import hashlib
 import math
 from dataclasses import dataclass, field
-from collections.abc import Sequence
-from typing import Literal, Optional
+from typing import Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -136,7 +135,7 @@ class ContactSurface:
     # ------------------------------------------------------------------ constructors
     @classmethod
     def from_array(cls, pressure: ArrayLike, cell_size: float, name: str = 'custom',
-                   layout: Layout = 'ji', shape: Optional[tuple[int, int]] = None,
+                   layout: Layout = 'ji', shape: tuple[int, int] | None = None,
                    ) -> ContactSurface:
         """Build a surface from a pressure array of any scale.
 
@@ -314,7 +313,7 @@ def non_convex_2(n: int = 21, size: float = 0.02) -> ContactSurface:
 
 
 def soft_finger(f_n: float, n: int = 21, size: float = 0.02,
-                k: Optional[float] = 2.0) -> ContactSurface:
+                k: float | None = 2.0) -> ContactSurface:
     """Load-dependent soft-finger map (spec §3): ``p(r) ∝ (1 − (r/a)^k)^(1/k)`` for ``r ≤ a``.
 
     Args:
@@ -373,8 +372,3 @@ def standard_surface(name: str, n: int = 21, size: float = 0.02) -> ContactSurfa
         The surface.
     """
     return _CONSTRUCTORS[_canonical_name(name)](n, size)
-
-
-def surface_names() -> Sequence[str]:
-    """Canonical surface names (for CLIs and parametrised tests)."""
-    return STANDARD_SURFACES

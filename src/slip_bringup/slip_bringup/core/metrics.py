@@ -9,7 +9,8 @@
 * §6.6 rotational slip: final angle by integrating ``(ω1 − ω2)/2`` in the raw sensor frames
   (finger 2's z is flipped); tracking errors.
 * §6.7 hold and hinge: peak slip distance and angle (largest excursion of the integrated
-  mean slip from the start) and the force range.
+  mean slip from the start) and the force range; force statistics.
+* the final estimate of a run: the last valid value of each quantity (`last_valid`).
 
 Integration is trapezoidal on the sample stamps; intervals with ``dt ≤ 0`` contribute
 nothing (CE-6). All inputs are SI.
@@ -23,8 +24,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from slip_control.core.contact import ContactProperties
 from slip_cell_common.core.frames import FrameParams, planar_to_middle
+from slip_control.core.contact import ContactProperties
 
 FloatArray = NDArray[np.float64]
 
@@ -86,6 +87,11 @@ class FingerSpread:
     n_rotational_valid: int
     mean_n_linear: float
     mean_n_rotational: float
+
+
+def spread(values: Sequence[float]) -> Spread:
+    """Mean and sample SD of the finite ``values`` (SD NaN below two values)."""
+    return _spread(values)
 
 
 def _spread(values: Sequence[float]) -> Spread:
@@ -244,3 +250,62 @@ def hold_metrics(t: ArrayLike, v_middle: ArrayLike, omega_middle: ArrayLike,
     f = np.asarray(force, dtype=np.float64)
     return HoldMetrics(float(dist.max()), float(np.abs(ang).max()), float(dist[-1]),
                        float(f.min()), float(f.max()))
+
+
+@dataclass(frozen=True, slots=True)
+class ForceStats:
+    """Statistics of a grasp-force series [N] (finite samples only; NaN when none)."""
+
+    min: float
+    max: float
+    mean: float
+    sd: float
+    n: int
+
+    @property
+    def span(self) -> float:
+        """``max − min`` [N] (§6.7)."""
+        return self.max - self.min
+
+
+def force_stats(force: ArrayLike) -> ForceStats:
+    """Min, max, mean and sample SD of the finite samples of ``force`` [N]."""
+    f = np.asarray(force, dtype=np.float64)
+    f = f[np.isfinite(f)]
+    if f.size == 0:
+        return ForceStats(math.nan, math.nan, math.nan, math.nan, 0)
+    sd = float(f.std(ddof=1)) if f.size > 1 else math.nan
+    return ForceStats(float(f.min()), float(f.max()), float(f.mean()), sd, int(f.size))
+
+
+# --- §6.4: the final estimate ----------------------------------------------------------------
+
+@dataclass(frozen=True, slots=True)
+class FinalValue:
+    """One quantity of the final estimate and where it came from.
+
+    Attributes:
+        value: The last valid, finite value (NaN when no estimate has it).
+        std: Its 1-sigma uncertainty as published with it (NaN if unknown).
+        index: Index of the estimate it was taken from (−1: none).
+    """
+
+    value: float
+    std: float
+    index: int
+
+
+def last_valid(values: Sequence[float], stds: Sequence[float],
+               valid: Sequence[bool]) -> FinalValue:
+    """The final estimate of one quantity: the last one that is valid and finite.
+
+    Estimates arrive in stages (the linear phase publishes ``μ_c`` with ``r`` still NaN, the
+    rotational phase completes the set), so the final value is the last complete one — never
+    a mean over partial sets, where one NaN would hide a good estimate.
+    """
+    for i in range(len(values) - 1, -1, -1):
+        v = float(values[i])
+        if valid[i] and math.isfinite(v):
+            s = float(stds[i])
+            return FinalValue(v, s if math.isfinite(s) else math.nan, i)
+    return FinalValue(math.nan, math.nan, -1)

@@ -1,10 +1,12 @@
 """Frames of the gripper cell and planar transforms between pad frames and ``gripper_middle``.
 
-Frame tree (hardware_protocols spec §5.1; rotations intrinsic, translations in m)::
+Frame tree (hardware_protocols §5.1; rotations intrinsic, translations in m)::
 
     tool0 ─ gripper_base_link ─(0, 0, 0.173), Rx(+90°)─ gripper_middle
-    gripper_middle ─(0, 0, −(opening/2 + pad_offset)), Rz(ft_1_yaw)─ ft_sensor_1 ─(+z pad_offset)─ vel_sensor_1
-    gripper_middle ─(0, 0, +(opening/2 + pad_offset)), Rx(180°)·Rz(ft_2_yaw)─ ft_sensor_2 ─(+z pad_offset)─ vel_sensor_2
+    gripper_middle ─(0, 0, −(opening/2 + pad_offset)), Rz(ft_1_yaw)─ ft_sensor_1
+        ─(+z pad_offset)─ vel_sensor_1
+    gripper_middle ─(0, 0, +(opening/2 + pad_offset)), Rx(180°)·Rz(ft_2_yaw)─ ft_sensor_2
+        ─(+z pad_offset)─ vel_sensor_2
 
 ``gripper_middle`` z is the grasp axis (finger 1 → finger 2); its xy plane is the plane the
 object slides in. ``vel_sensor_k`` has the axes of ``ft_sensor_k``. Because of the Rx(180°),
@@ -14,6 +16,8 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+
+from slip_cell_common.core import names
 
 Vector3 = tuple[float, float, float]
 Quaternion = tuple[float, float, float, float]  # (x, y, z, w)
@@ -39,7 +43,7 @@ class FrameParams:
 
     def frame_id(self, name: str) -> str:
         """Frame id with the configured prefix (``tool0`` is the arm's and never prefixed)."""
-        return name if name == 'tool0' else self.tf_prefix + name
+        return name if name == names.TOOL0 else self.tf_prefix + name
 
     def yaw(self, finger: int) -> float:
         """Yaw [rad] of finger ``finger``'s sensor frame (before the flip for finger 2)."""
@@ -86,12 +90,6 @@ def planar_from_middle(frames: FrameParams, finger: int, x: float, y: float,
     return (c * x + s * y, -s * x + c * y, z)
 
 
-def normal_force_sign(finger: int) -> float:
-    """Sign that turns the finger's sensor Fz into the ``gripper_middle`` z force (+1 or −1)."""
-    _check_finger(finger)
-    return 1.0 if finger == 1 else -1.0
-
-
 def _quat_mul(a: Quaternion, b: Quaternion) -> Quaternion:
     ax, ay, az, aw = a
     bx, by, bz, bw = b
@@ -125,12 +123,13 @@ def static_transforms(frames: FrameParams) -> list[Transform]:
     """The transforms that never change: tool0 → base → middle, ft_sensor_k → vel_sensor_k."""
     p = frames.frame_id
     out = [
-        Transform('tool0', p('gripper_base_link'), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0)),
-        Transform(p('gripper_base_link'), p('gripper_middle'), (0.0, 0.0, frames.base_to_middle_z),
-                  quat_rx(math.pi / 2.0)),
+        Transform(names.TOOL0, p(names.GRIPPER_BASE_LINK), (0.0, 0.0, 0.0),
+                  (0.0, 0.0, 0.0, 1.0)),
+        Transform(p(names.GRIPPER_BASE_LINK), p(names.GRIPPER_MIDDLE),
+                  (0.0, 0.0, frames.base_to_middle_z), quat_rx(math.pi / 2.0)),
     ]
     for k in (1, 2):
-        out.append(Transform(p(f'ft_sensor_{k}'), p(f'vel_sensor_{k}'),
+        out.append(Transform(p(names.ft_sensor_frame(k)), p(names.vel_sensor_frame(k)),
                              (0.0, 0.0, frames.pad_offset), (0.0, 0.0, 0.0, 1.0)))
     return out
 
@@ -142,6 +141,6 @@ def finger_transforms(frames: FrameParams, opening: float) -> list[Transform]:
     q1 = quat_rz(frames.ft_1_yaw)
     q2 = _quat_mul(quat_rx(math.pi), quat_rz(frames.ft_2_yaw))
     return [
-        Transform(p('gripper_middle'), p('ft_sensor_1'), (0.0, 0.0, -half), q1),
-        Transform(p('gripper_middle'), p('ft_sensor_2'), (0.0, 0.0, half), q2),
+        Transform(p(names.GRIPPER_MIDDLE), p(names.ft_sensor_frame(1)), (0.0, 0.0, -half), q1),
+        Transform(p(names.GRIPPER_MIDDLE), p(names.ft_sensor_frame(2)), (0.0, 0.0, half), q2),
     ]

@@ -1,7 +1,12 @@
 """Parameter sets as frozen dataclasses: flatten, validate and rebuild (ROS-free).
 
 A node's parameters are one frozen dataclass; groups are nested frozen dataclasses whose
-fields are flattened with ``.`` (``force_control.kp``). Each field may carry metadata:
+fields are flattened with ``.`` (``force_control.kp``). A group field marked ``flatten`` (see
+`flattened_group`) adds its fields to its parent's level instead: a node's class nests a core's
+parameter class without copying its fields, and the flat names stay those of the fields
+(``expected_rate``, not ``session.expected_rate``). Two fields that flatten to one name, or a
+name that is also a group prefix, are rejected when the specs are built. Each field may carry
+metadata:
 
 * ``unit``: unit string shown in the parameter description (SI).
 * ``description``: one line for users.
@@ -9,6 +14,7 @@ fields are flattened with ``.`` (``force_control.kp``). Each field may carry met
 * ``choices``: allowed values for strings.
 * ``required``: the default (empty string) is a placeholder that the user must replace.
 * ``read_only``: bound at configure; cannot be changed at run time.
+* ``flatten``: (group fields only) the group's fields join the parent's level.
 
 `slip_cell_common.param_binding` declares these on an rclpy node.
 """
@@ -17,7 +23,8 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass
-from typing import Any, Iterator, Mapping, TypeVar
+from typing import Any, TypeVar
+from collections.abc import Callable, Iterator, Mapping
 
 T = TypeVar('T')
 
@@ -52,6 +59,17 @@ def ranged_field(default: Any, unit: str, low: float, high: float, description: 
         'unit': unit, 'range': (low, high), 'description': description})
 
 
+def flattened_group(factory: Callable[[], Any]) -> Any:
+    """A group field whose fields join the parent's level (metadata ``flatten``).
+
+    Args:
+        factory: Builds the group's default instance (usually the group's class).
+
+    Returns ``Any`` for the same reason as `ranged_field`.
+    """
+    return dataclasses.field(default_factory=factory, metadata={'flatten': True})
+
+
 class ParameterError(ValueError):
     """Raised when a parameter set is invalid; the message lists every problem."""
 
@@ -59,22 +77,51 @@ class ParameterError(ValueError):
 def _field_default(f: dataclasses.Field) -> Any:
     if f.default is not dataclasses.MISSING:
         return f.default
-    if f.default_factory is not dataclasses.MISSING:  # type: ignore[misc]
-        return f.default_factory()  # type: ignore[misc]
+    if f.default_factory is not dataclasses.MISSING:
+        return f.default_factory()
     raise TypeError(f'parameter field {f.name!r} has no default')
 
 
-def iter_specs(cls: type, prefix: str = '', defaults: Any = None) -> Iterator[ParamSpec]:
+def _group_prefix(f: dataclasses.Field, value: Any, prefix: str) -> str | None:
+    """Name prefix of a group field's members, or None when ``f`` is not a group."""
+    if not dataclasses.is_dataclass(value):
+        if f.metadata.get('flatten'):
+            raise TypeError(f'parameter {prefix + f.name!r}: only a dataclass group can be '
+                            'flattened')
+        return None
+    return prefix if f.metadata.get('flatten') else prefix + f.name + '.'
+
+
+def iter_specs(cls: type, prefix: str = '') -> Iterator[ParamSpec]:
     """Yield the flattened parameter specs of a (nested) frozen dataclass type.
 
     A nested group's defaults are those of the instance its field's default (or
     ``default_factory``) produces, so two groups of one class can default differently.
+
+    Raises:
+        TypeError: when a field has no default or an unsupported type, or when two fields
+            flatten to one name (``a`` twice, or ``a`` beside ``a.b``).
     """
+    seen: set[str] = set()
+    groups: set[str] = set()
+    for spec in _iter_specs(cls, prefix, None):
+        dotted = spec.name.split('.')
+        parents = {'.'.join(dotted[:i]) for i in range(1, len(dotted))}
+        if spec.name in seen or spec.name in groups or parents & seen:
+            raise TypeError(f'parameter {spec.name!r} of {cls.__name__} collides with another '
+                            'field (check flattened groups)')
+        seen.add(spec.name)
+        groups |= parents
+        yield spec
+
+
+def _iter_specs(cls: type, prefix: str, defaults: Any) -> Iterator[ParamSpec]:
     for f in dataclasses.fields(cls):
         default = getattr(defaults, f.name) if defaults is not None else _field_default(f)
         name = prefix + f.name
-        if dataclasses.is_dataclass(default):
-            yield from iter_specs(type(default), name + '.', default)
+        group = _group_prefix(f, default, prefix)
+        if group is not None:
+            yield from _iter_specs(type(default), group, default)
             continue
         meta = f.metadata
         is_tuple = isinstance(default, tuple)
@@ -104,8 +151,9 @@ def flatten(instance: Any, prefix: str = '') -> dict[str, Any]:
     out: dict[str, Any] = {}
     for f in dataclasses.fields(instance):
         value = getattr(instance, f.name)
-        if dataclasses.is_dataclass(value):
-            out.update(flatten(value, prefix + f.name + '.'))
+        group = _group_prefix(f, value, prefix)
+        if group is not None:
+            out.update(flatten(value, group))
         else:
             out[prefix + f.name] = value
     return out
@@ -154,8 +202,9 @@ def _build(cls: type, flat: Mapping[str, Any], prefix: str, defaults: Any = None
     for f in dataclasses.fields(cls):
         default = getattr(defaults, f.name) if defaults is not None else _field_default(f)
         name = prefix + f.name
-        if dataclasses.is_dataclass(default):
-            kwargs[f.name] = _build(type(default), flat, name + '.', default)
+        group = _group_prefix(f, default, prefix)
+        if group is not None:
+            kwargs[f.name] = _build(type(default), flat, group, default)
         elif name in flat:
             kwargs[f.name] = flat[name]
     return dataclasses.replace(defaults, **kwargs) if defaults is not None else cls(**kwargs)
@@ -187,7 +236,7 @@ def from_flat(cls: type[T], flat: Mapping[str, Any], *, strict: bool = True) -> 
             problems.extend(check_value(spec, value))
     if problems:
         raise ParameterError('; '.join(problems))
-    instance = _build(cls, coerced, '')
+    instance: T = _build(cls, coerced, '')
     validate = getattr(instance, 'validate', None)
     if callable(validate):
         validate()

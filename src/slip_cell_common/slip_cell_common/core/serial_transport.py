@@ -15,13 +15,17 @@ every stamp handed to callers comes from the injected clock.
 from __future__ import annotations
 
 import errno
+import fcntl
 import os
 import re
 import select
+import struct
+import termios
 import threading
 import time
 from dataclasses import dataclass, field
-from typing import Callable, NamedTuple, Protocol, runtime_checkable
+from typing import NamedTuple, Protocol, runtime_checkable
+from collections.abc import Callable
 
 import serial
 
@@ -93,7 +97,8 @@ def open_stream(url: str, baudrate: int, timeout_s: float, *,
         timeout_s: Read timeout [s]; bounds how long a read blocks.
         write_timeout_s: Write timeout [s]; a wedged port raises instead of blocking. pyserial
             checks it after ``os.write`` returns, so a thread that waited for the GIL can see a
-            "timeout" for bytes already sent; a long timeout, on the other hand, lets a blocked write
+            "timeout" for bytes already sent; a long timeout, on the other hand, lets a
+            blocked write
             outlast the link supervision. Nodes pass a value suited to their link parameters.
         exclusive: Take an exclusive lock on POSIX ports (one owner per device, HW-13).
 
@@ -123,7 +128,9 @@ class LineReader:
 
     With ``resync`` the bytes before the first terminator are discarded: after (re)opening a
     port the first bytes may be the tail of a line (``416`` of ``3.1416``), which must never be
-    mistaken for a complete angle.
+    mistaken for a complete angle. A stream that stayed quiet since the reset is at a line
+    boundary (`quiet`): its next bytes start a line and are kept (a firmware that is silent
+    while it boots prints its first line then, e.g. the gripper's ``Voltage control``).
 
     Args:
         max_line_length: Longest accepted line [bytes], ≥ 1.
@@ -139,12 +146,20 @@ class LineReader:
         self._buf = bytearray()
         self._overflow = False
         self._skipping = resync
+        self._fed_since_reset = False
 
     def reset(self, resync: bool = True) -> None:
         """Forget any partial line (call after reopening the port)."""
         self._buf.clear()
         self._overflow = False
         self._skipping = resync
+        self._fed_since_reset = False
+
+    def quiet(self) -> None:
+        """The stream delivered nothing for a while: if nothing arrived since the reset, the
+        next byte starts a line, so stop resynchronising."""
+        if self._skipping and not self._fed_since_reset:
+            self._skipping = False
 
     def feed(self, data: bytes) -> list[tuple[bytes, bool]]:
         """Add received bytes and return the completed lines.
@@ -156,6 +171,8 @@ class LineReader:
             ``(line, overflow)`` pairs, terminators removed, in arrival order.
         """
         out: list[tuple[bytes, bool]] = []
+        if data:
+            self._fed_since_reset = True
         start = 0
         for match in _TERMINATOR_RE.finditer(data):
             end = match.start()
@@ -302,6 +319,8 @@ class LinkStats:
 
 
 LineCallback = Callable[[bytes, bool, float], None]
+#: ``(lines, t)``: every line completed by one read, oldest first, as ``(line, overflow)``.
+ChunkCallback = Callable[[list[tuple[bytes, bool]], float], None]
 EventCallback = Callable[[float, str], None]
 
 
@@ -312,11 +331,20 @@ class SerialLink:
     `open`) and must not block:
 
     * ``on_line(line, overflow, t)``: one line without terminator; ``t`` = ``clock()`` taken
-      when its last bytes were read [s].
+      when its last bytes were read [s]. With ``on_chunk`` the lines of one read arrive
+      together instead (``on_chunk(lines, t)``), so a consumer can tell a backlog (lines that
+      waited while the reader was descheduled) from lines that arrived one by one.
     * ``on_connected(t, port)``: the stream is open (initially and after each reconnection).
     * ``on_lost(t, reason)``: the link failed or a drop was requested; the reason names the
       port. Reconnection attempts follow with back-off.
     * ``on_error(t, message)``: a reopen attempt failed or a callback raised.
+
+    Descriptor lifetime: only the reader thread reads the descriptors, and a stream is closed
+    only when no reader uses it: `close` closes at once when the reader has ended, otherwise
+    the reader closes the stream itself on its way out (a stream closed under a thread that
+    still selects or reads on its descriptor numbers would let that thread touch whatever
+    the process opens next under the same numbers). Cancelling a read writes to pyserial's
+    abort pipe under the same lock that guards closing.
 
     Latency (the 500 Hz loop writes its command from ``on_line``): on a POSIX port opened by
     pyserial the reader waits with one ``select`` on the port and pyserial's abort pipe, reads
@@ -343,6 +371,7 @@ class SerialLink:
         wait_clock: Monotonic clock used only to time back-off waits.
         thread_setup: Called first on the reader thread (scheduling priority, see
             `realtime.ThreadTuning.apply`); its exceptions are counted like a callback's.
+        on_chunk: Receives the lines of each read together instead of ``on_line``.
     """
 
     def __init__(self, url: str, *, clock: Clock, on_line: LineCallback,
@@ -352,8 +381,15 @@ class SerialLink:
                  max_line_length: int = 128, reconnect: ReconnectParams = ReconnectParams(),
                  opener: Callable[..., ByteStream] = open_stream,
                  wait_clock: Clock = time.monotonic,
-                 thread_setup: Callable[[], object] | None = None) -> None:
+                 thread_setup: Callable[[], object] | None = None,
+                 on_chunk: ChunkCallback | None = None) -> None:
         self.url = url
+        self._on_chunk = on_chunk
+        self._last_read = float('nan')
+        self._reading = False
+        self._exit_lock = threading.Lock()  # hands the close over to an exiting reader
+        self._reader_running = False
+        self._close_on_exit = False
         self._thread_setup = thread_setup
         self._direct: _DirectIO | None = None
         self._clock = clock
@@ -397,12 +433,30 @@ class SerialLink:
                               write_timeout_s=self._write_timeout_s)
         self._install(stream)
 
-    def start(self) -> None:
-        """Start the reader thread (activate). The port must have been opened once."""
-        if self._thread is not None and self._thread.is_alive():
-            return
-        if not self._ever_connected:
+    def start(self, open_retry: bool = False) -> None:
+        """Start the reader thread (activate).
+
+        Args:
+            open_retry: Allow a start before any successful `open`: the reader then opens the
+                port with back-off (``reconnect.*``) until it succeeds or `stop` is called,
+                reporting each failed attempt through ``on_error``. Otherwise the port must
+                have been opened once.
+
+        Raises:
+            LinkError: Not opened yet and ``open_retry`` is False.
+        """
+        thread = self._thread
+        if thread is not None and thread.is_alive():
+            if not self._stop.is_set():
+                return
+            thread.join(5.0)  # a reader still on its way out of an earlier stop: never two
+            if thread.is_alive():
+                raise LinkError(f'{self.url}: the previous reader thread has not ended')
+        if not self._ever_connected and not open_retry:
             raise LinkError(f'{self.url}: start() before a successful open()')
+        with self._exit_lock:
+            self._close_on_exit = False
+            self._reader_running = True
         self._stop.clear()
         self._lines.reset(resync=True)
         self._flush_input()
@@ -421,12 +475,49 @@ class SerialLink:
         thread = self._thread
         if thread is not None and thread is not threading.current_thread():
             thread.join(timeout_s)
-        self._thread = None
+        if thread is None or not thread.is_alive():
+            self._thread = None
 
-    def close(self) -> None:
-        """Stop the thread and close the port (cleanup/shutdown)."""
-        self.stop()
+    def close(self, timeout_s: float = 1.0) -> None:
+        """Stop the thread and close the port (cleanup/shutdown).
+
+        When the reader has not ended within ``timeout_s`` [s] (`stop`) it closes the stream
+        itself as it exits: a descriptor is never closed under a thread that may still use it.
+        """
+        self.stop(timeout_s)
+        with self._exit_lock:
+            if self._reader_running and self._thread is not threading.current_thread():
+                self._close_on_exit = True
+                return
         self._close_stream()
+
+    @property
+    def last_read_stamp(self) -> float:
+        """``clock()`` of the newest read that completed a line [s] (NaN before the first): the
+        stamp its lines are handed over with, set before the callbacks run."""
+        return self._last_read
+
+    @property
+    def read_in_progress(self) -> bool:
+        """The reader has taken bytes off the port and not yet recorded their lines
+        (`last_read_stamp`); only on the direct POSIX path."""
+        return self._reading
+
+    def input_pending(self) -> int:
+        """Bytes the port has received that the reader has not read yet (0 when closed or
+        unknown). Thread-safe; tells a silent device from a reader that fell behind."""
+        with self._write_lock:
+            stream = self._stream
+            direct = self._direct
+            if stream is None:
+                return 0
+            try:
+                if direct is not None:
+                    raw = fcntl.ioctl(direct.fd, termios.TIOCINQ, struct.pack('I', 0))
+                    return int(struct.unpack('I', raw)[0])
+                return int(getattr(stream, 'in_waiting', 0) or 0)
+            except (OSError, ValueError, TypeError, serial.SerialException):
+                return 0
 
     @property
     def connected(self) -> bool:
@@ -525,6 +616,9 @@ class SerialLink:
         if direct.abort_r in ready:  # cancel_read(): drain the abort pipe like pyserial
             os.read(direct.abort_r, 1000)
             return b''
+        # From here until the lines are recorded the bytes are neither waiting at the port
+        # nor handed over; a thread that waits for the GIL meanwhile must not look silent.
+        self._reading = True
         try:
             chunk = os.read(direct.fd, _MAX_CHUNK)
         except OSError as exc:
@@ -559,12 +653,15 @@ class SerialLink:
                 self._last_error = describe_link_error(self.url, exc)
 
     def _cancel_read(self) -> None:
-        cancel = getattr(self._stream, 'cancel_read', None)
-        if callable(cancel):
-            try:
-                cancel()
-            except (serial.SerialException, OSError, AttributeError, TypeError):
-                pass  # the stream is closing; the read timeout bounds the wait anyway
+        # Under the write lock: `_close_stream` takes the stream out under it before closing,
+        # so the abort pipe written here is still open (never a recycled descriptor number).
+        with self._write_lock:
+            cancel = getattr(self._stream, 'cancel_read', None)
+            if callable(cancel):
+                try:
+                    cancel()
+                except (serial.SerialException, OSError, AttributeError, TypeError):
+                    pass  # the stream is closing; the read timeout bounds the wait anyway
 
     def _close_stream(self) -> None:
         with self._write_lock:
@@ -576,17 +673,17 @@ class SerialLink:
             except (serial.SerialException, OSError) as exc:
                 self._last_error = describe_link_error(self.url, exc)
 
-    def _call(self, callback: Callable[..., None], *args: object) -> None:
+    def _call(self, callback: Callable[..., object], *args: object) -> None:
         try:
             callback(*args)
-        except Exception as exc:  # noqa: BLE001 - a callback bug must not kill the link
+        except Exception as exc:
             self._callback_errors += 1
             self._last_error = f'callback {getattr(callback, "__name__", callback)!r} raised ' \
                                f'{type(exc).__name__}: {exc}'
             if self._on_error is not None and callback is not self._on_error:
                 try:
                     self._on_error(self._clock(), self._last_error)
-                except Exception:  # noqa: BLE001 - error reporting itself failed; counted
+                except Exception:
                     self._callback_errors += 1
 
     def _lose(self, reason: str) -> None:
@@ -598,6 +695,16 @@ class SerialLink:
             self._call(self._on_lost, self._clock(), reason)
 
     def _run(self) -> None:
+        try:
+            self._read_loop()
+        finally:
+            with self._exit_lock:
+                self._reader_running = False
+                close = self._close_on_exit
+            if close:  # close() came while this thread was still running
+                self._close_stream()
+
+    def _read_loop(self) -> None:
         if self._thread_setup is not None:
             self._call(self._thread_setup)
         while not self._stop.is_set():
@@ -612,16 +719,27 @@ class SerialLink:
             try:
                 chunk = self._read(stream)
             except (serial.SerialException, OSError, TypeError, ValueError) as exc:
+                self._reading = False
                 # TypeError/ValueError: pyserial on a descriptor that vanished under it.
                 if self._stop.is_set():
                     break
                 self._lose(describe_link_error(self.url, exc))
                 continue
-            if not chunk:
+            if not chunk:  # read timeout (or a cancel): the stream was quiet
+                self._reading = False
+                self._lines.quiet()
                 continue
             stamp = self._clock()
             self._bytes_read += len(chunk)
-            for line, overflow in self._lines.feed(chunk):
+            lines = self._lines.feed(chunk)
+            if lines:
+                self._last_read = stamp
+            self._reading = False
+            if self._on_chunk is not None:
+                if lines:
+                    self._call(self._on_chunk, lines, stamp)
+                continue
+            for line, overflow in lines:
                 self._call(self._on_line, line, overflow, stamp)
 
     def _reconnect_once(self) -> None:
@@ -637,5 +755,6 @@ class SerialLink:
             if self._on_error is not None:
                 self._call(self._on_error, self._clock(), str(exc))
             return
-        self._reconnects += 1
+        if self._ever_connected:  # the first successful open of a start retry is no reconnect
+            self._reconnects += 1
         self._install(stream)

@@ -2,7 +2,7 @@
 """Shared ``validate()`` helper for the parameter dataclasses of this package's cores."""
 from __future__ import annotations
 
-from typing import Iterable
+from collections.abc import Iterable
 
 from slip_cell_common.core.param_schema import ParameterError, check_value, flatten, specs
 

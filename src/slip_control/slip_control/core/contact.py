@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: Apache-2.0
-"""Contact properties of the two finger pads (control_and_estimation spec §3.1, §3.7; CE-4).
+"""Contact properties of the two finger pads (control_and_estimation §3.1, §3.7; CE-4).
 
 Immutable mirrors of ``slip_msgs/FingerContact`` and ``slip_msgs/ContactProperties``. Values a
 fit did not produce are NaN, never a placeholder number; every set carries its ``source`` and

@@ -30,7 +30,13 @@ HINGE (§4.7)::
 Timing and guards (CE-6, CE-7): a *step* is triggered by a new finger-1 twist; ``dt`` is the
 difference of finger-1 twist stamps, and the trajectory time is that stamp minus the start
 time. ``dt ≤ 0`` or ``dt > dt_max`` skips the position, derivative, integral and ``f_slip``
-updates of that step. Stop tests use thresholds, never float equality (§4.9).
+updates of that step. Stop tests use thresholds, never float equality (§4.9). A trajectory
+ends "done" (success) only with its progress within ``trajectory.position_tolerance`` /
+``angle_tolerance`` of the target; one that settles short of it ends at ``T + settle_timeout``
+with "stalled: 4.1 of 20.0 mm" (a failure that says how far it got).
+
+These are the thesis laws (control law ``thesis``); the model-based laws of
+docs/model_slip_control.md share `TrajectoryController` (progress, stops, hand-over).
 
 Stale inputs (CE-3), judged against the evaluation time ``t`` passed to `step` (the node
 calls `step` on each finger-1 twist *and* from a watchdog timer, so staleness is detected
@@ -156,9 +162,12 @@ class SlipResult:
 
     Attributes:
         mode: The trajectory's mode.
-        success: True for "done" (target reached, or settled after ``T``).
-        message: "done", "timeout", "slip reversed", "velocity stale", "F/T stale",
-            "preempted".
+        success: True for "done": the progress is within the tolerance of the target
+            (``trajectory.position_tolerance`` / ``angle_tolerance``).
+        message: "done"; failures "stalled: 4.1 of 20.0 mm" (settled short of the target at
+            ``T + settle_timeout``), "timeout: …, still moving", "slip reversed", "contact
+            lost", "velocity stale", "F/T stale", "preempted"; the model laws add "overshoot:
+            …" and "no slip at minimum force: …".
         final_pos: Integrated progress [m | rad].
         final_error: Target − final position [m | rad].
         elapsed: Time since the start [s].
@@ -208,6 +217,8 @@ class SlipController(ABC):
     """
 
     mode: ClassVar[SlipMode]
+    #: Law family (``ModeRequest.control_law``) of the class; the thesis laws are these.
+    control_law: ClassVar[str] = 'thesis'
 
     def __init__(self, params: SlipControllerParams, contact: ControlContact) -> None:
         self._p = params
@@ -417,8 +428,9 @@ class HingeController(SlipController):
         return self._emit(self._out, st)
 
 
-class _TrajectoryController(SlipController):
-    """Shared machinery of LINEAR and ROTATIONAL: trajectory, integrators, stops, hand-over.
+class TrajectoryController(SlipController):
+    """Shared machinery of the LINEAR and ROTATIONAL laws (thesis and model): trajectory,
+    progress from the fingers' travel, the common stop rules, results and the HOLD hand-over.
 
     Args:
         params: Controller parameters.
@@ -427,6 +439,9 @@ class _TrajectoryController(SlipController):
         duration: Trajectory time ``T`` [s].
         t_start: Start time [s] (same clock as the stamps).
     """
+
+    #: Unit of the progress in result messages and its scale from SI (mm or deg).
+    unit: ClassVar[tuple[str, float]] = ('mm', 1000.0)
 
     def __init__(self, params: SlipControllerParams, contact: ControlContact, target: float,
                  duration: float, t_start: float) -> None:
@@ -437,9 +452,6 @@ class _TrajectoryController(SlipController):
         self._t_start = t_start
         self._x = 0.0              # integrated progress [m | rad]
         self._travel_ref: tuple[Travel, Travel] | None = None   # finger travel at the last step
-        self._integral = 0.0       # E [m | rad]
-        self._f_slip: float | None = None
-        self._v_prev: float | None = None
         self._reverse_since: float | None = None
         self._lost_since: float | None = None
         self._elapsed = 0.0
@@ -449,32 +461,16 @@ class _TrajectoryController(SlipController):
     # mode-specific pieces ------------------------------------------------------------------
 
     @abstractmethod
-    def _progress_rate(self, v: MiddleTwist) -> float:
-        """Signed (or magnitude) progress rate of this step [m/s | rad/s]; may latch."""
-
-    @abstractmethod
     def _progress_increment(self, d: MiddleTwist) -> float:
         """Progress [m | rad] of a middle-frame displacement ``d`` (fields are m, m, rad)."""
-
-    @abstractmethod
-    def _slip_ratio(self, w: MiddleWrench) -> float:
-        """Slip-threshold force of this step [N] (``ft/μ_c`` or ``D/μ_c``)."""
-
-    @abstractmethod
-    def _gains(self) -> tuple[float, float, float, float, float, float, float]:
-        """``(kp, ki, kd, k_rate, slip_filter, floor, accel_gate)``."""
-
-    @abstractmethod
-    def _extra_floor(self, w: MiddleWrench, v: MiddleTwist) -> float:
-        """Additional force floor [N] (ROTATIONAL translation floor; 0 for LINEAR)."""
 
     @abstractmethod
     def _reversed(self, rate: float) -> bool:
         """The signed progress rate counts as reversed."""
 
     @abstractmethod
-    def _stop_threshold(self) -> float:
-        """``stop_speed`` or ``stop_rate``."""
+    def _tolerance(self) -> float:
+        """Largest ``|P − x|`` that counts as reached [m | rad]."""
 
     # public --------------------------------------------------------------------------------
 
@@ -506,7 +502,6 @@ class _TrajectoryController(SlipController):
         """
         super().reset(t)
         self._t_start = t - self._elapsed
-        self._v_prev = None
         self._reverse_since = None
         self._lost_since = None
 
@@ -516,6 +511,114 @@ class _TrajectoryController(SlipController):
             return None
         self._done = True
         return self._result(False, message, max(self._elapsed, t - self._t_start))
+
+    # internals -----------------------------------------------------------------------------
+
+    def _advance_progress(self, inputs: SensorSnapshot) -> None:
+        """Add the travel since the last step to the progress.
+
+        Progress comes from the fingers' integrated travel, not rate·dt: exact even when a step
+        did not see every sample (skipped unsynchronised steps, executor backlog).
+        """
+        travel = (inputs.travel_1, inputs.travel_2)
+        if self._travel_ref is not None:
+            self._x += self._progress_increment(
+                middle_travel_delta(self._p.frames, self._travel_ref, travel))
+        self._travel_ref = travel
+
+    @staticmethod
+    def _held_for(since: float | None, active: bool, stamp: float, hold_time: float
+                  ) -> tuple[float | None, bool]:
+        """Debounce: ``(new since, condition held for longer than hold_time)``."""
+        if not active:
+            return None, False
+        if since is None:
+            return stamp, False
+        return since, stamp - since > hold_time
+
+    def _common_stops(self, stamp: float, rate: float, w: MiddleWrench) -> str:
+        """Failures every trajectory law shares (§4.9): "contact lost", "slip reversed" or ''.
+
+        A dropped object reads as zero slip speed and would look "settled", so a normal force
+        below ``contact_lost_force`` (pads closing on nothing) for ``contact_lost_time`` ends
+        the trajectory first, as a failure.
+        """
+        p = self._p
+        self._lost_since, lost = self._held_for(
+            self._lost_since, w.normal_force < p.contact_lost_force, stamp, p.contact_lost_time)
+        if lost:
+            return 'contact lost'
+        self._reverse_since, reversed_ = self._held_for(
+            self._reverse_since, p.direction_aware and self._reversed(rate), stamp,
+            p.reversal.time)
+        if reversed_:
+            return 'slip reversed'
+        return ''
+
+    def _reached(self) -> bool:
+        """The progress is within the tolerance of the target."""
+        return abs(self._target - self._x) <= self._tolerance()
+
+    def _shortfall(self, kind: str, suffix: str = '') -> str:
+        """``'<kind>: 4.1 of 20.0 mm<suffix>'`` (progress against the target)."""
+        name, scale = self.unit
+        return (f'{kind}: {self._x * scale:.1f} of {self._target * scale:.1f} {name}'
+                f'{suffix}')
+
+    def _result(self, success: bool, message: str, elapsed: float) -> SlipResult:
+        return SlipResult(mode=self.mode, success=success, message=message,
+                          final_pos=self._x, final_error=self._target - self._x,
+                          elapsed=elapsed)
+
+    def _finish(self, inputs: SensorSnapshot, t: float, success: bool, message: str,
+                elapsed: float, track: TrackingRecord | None) -> ControlOutput:
+        """End the trajectory and run the HOLD successor on the same inputs (§4.1)."""
+        self._done = True
+        result = self._result(success, message, elapsed)
+        hold = HoldController(self._p, self._c, initial_force=self._out)
+        self._successor = hold
+        out = hold.step(inputs, t)
+        if track is not None and out.force is not None:
+            track = replace(track, force_cmd=out.force)
+        return replace(out, tracking=track, result=result, next_controller=hold,
+                       reason=f'{self.mode.name} ended: {message}')
+
+
+class _ThesisTrajectory(TrajectoryController):
+    """The thesis laws of LINEAR and ROTATIONAL (§4.5, §4.6): integrators and stop rule."""
+
+    def __init__(self, params: SlipControllerParams, contact: ControlContact, target: float,
+                 duration: float, t_start: float) -> None:
+        super().__init__(params, contact, target, duration, t_start)
+        self._integral = 0.0       # E [m | rad]
+        self._f_slip: float | None = None
+        self._v_prev: float | None = None
+
+    # mode-specific pieces ------------------------------------------------------------------
+
+    @abstractmethod
+    def _progress_rate(self, v: MiddleTwist) -> float:
+        """Signed (or magnitude) progress rate of this step [m/s | rad/s]; may latch."""
+
+    @abstractmethod
+    def _slip_ratio(self, w: MiddleWrench) -> float:
+        """Slip-threshold force of this step [N] (``ft/μ_c`` or ``D/μ_c``)."""
+
+    @abstractmethod
+    def _gains(self) -> tuple[float, float, float, float, float, float, float]:
+        """``(kp, ki, kd, k_rate, slip_filter, floor, accel_gate)``."""
+
+    @abstractmethod
+    def _extra_floor(self, w: MiddleWrench, v: MiddleTwist) -> float:
+        """Additional force floor [N] (ROTATIONAL translation floor; 0 for LINEAR)."""
+
+    @abstractmethod
+    def _stop_threshold(self) -> float:
+        """``stop_speed`` or ``stop_rate``."""
+
+    def reset(self, t: float) -> None:
+        super().reset(t)
+        self._v_prev = None
 
     def step(self, inputs: SensorSnapshot, t: float) -> ControlOutput:
         """One LINEAR/ROTATIONAL step (§4.5/§4.6) with the stop conditions of §4.9."""
@@ -548,13 +651,7 @@ class _TrajectoryController(SlipController):
         kp, ki, kd, k_rate, a, floor, gate = self._gains()
 
         rate = self._progress_rate(v)
-        # Progress from the fingers' integrated travel, not rate·dt: exact even when this step
-        # did not see every sample (skipped unsynchronised steps, executor backlog).
-        travel = (inputs.travel_1, inputs.travel_2)
-        if self._travel_ref is not None:
-            self._x += self._progress_increment(
-                middle_travel_delta(frames, self._travel_ref, travel))
-        self._travel_ref = travel
+        self._advance_progress(inputs)
         x_d, v_d = self._traj.sample(tau)
         v_cmd = v_d + kp * (x_d - self._x)
         acc = 0.0
@@ -585,63 +682,33 @@ class _TrajectoryController(SlipController):
         return ControlOutput(mode=self.mode, force=f_d, timeout=self._p.command_timeout,
                              status=st, tracking=track)
 
-    # internals -----------------------------------------------------------------------------
-
-    @staticmethod
-    def _held_for(since: float | None, active: bool, stamp: float, hold_time: float
-                  ) -> tuple[float | None, bool]:
-        """Debounce: ``(new since, condition held for longer than hold_time)``."""
-        if not active:
-            return None, False
-        if since is None:
-            return stamp, False
-        return since, stamp - since > hold_time
-
     def _stop_condition(self, stamp: float, tau: float, rate: float, w: MiddleWrench
                         ) -> tuple[str, bool]:
         """Stop conditions (§4.9, CE-5): ``(message, success)``, ``('', False)`` to go on.
 
-        Thresholds only, never float equality. A dropped object reads as zero slip speed and
-        would look "settled", so a normal force below ``contact_lost_force`` (pads closing on
-        nothing) for ``contact_lost_time`` ends the trajectory first, as a failure.
+        Thresholds only, never float equality. The thesis rule ends at ``x ≥ P`` (early when the
+        object runs ahead) or once settled after ``T``; "done" (success) needs the progress
+        within the tolerance of the target. Settled short of it, the law keeps acting until
+        ``T + settle_timeout``, then ends "stalled: x of P" (or "timeout: …, still moving").
         """
-        p = self._p
-        self._lost_since, lost = self._held_for(
-            self._lost_since, w.normal_force < p.contact_lost_force, stamp, p.contact_lost_time)
-        if lost:
-            return 'contact lost', False
-        self._reverse_since, reversed_ = self._held_for(
-            self._reverse_since, p.direction_aware and self._reversed(rate), stamp,
-            p.reversal.time)
-        if reversed_:
-            return 'slip reversed', False
-        if self._x >= self._target or (tau >= self._traj.duration
-                                       and abs(rate) < self._stop_threshold()):
+        failure = self._common_stops(stamp, rate, w)
+        if failure:
+            return failure, False
+        settled = abs(rate) < self._stop_threshold()
+        if self._x >= self._target or (tau >= self._traj.duration and settled
+                                       and self._reached()):
             return 'done', True
-        if tau >= self._traj.duration + p.settle_timeout:
-            return 'timeout', False
+        if tau >= self._traj.duration + self._p.settle_timeout:
+            if not settled:
+                return self._shortfall('timeout', ', still moving'), False
+            floor = self._gains()[5]
+            at_floor = self._out is not None and self._out <= floor * (1.0 + 1e-9)
+            return self._shortfall('stalled at the minimum force' if at_floor
+                                   else 'stalled'), False
         return '', False
 
-    def _result(self, success: bool, message: str, elapsed: float) -> SlipResult:
-        return SlipResult(mode=self.mode, success=success, message=message,
-                          final_pos=self._x, final_error=self._target - self._x,
-                          elapsed=elapsed)
 
-    def _finish(self, inputs: SensorSnapshot, t: float, success: bool, message: str,
-                elapsed: float, track: TrackingRecord | None) -> ControlOutput:
-        """End the trajectory and run the HOLD successor on the same inputs (§4.1)."""
-        self._done = True
-        result = self._result(success, message, elapsed)
-        hold = HoldController(self._p, self._c, initial_force=self._out)
-        self._successor = hold
-        out = hold.step(inputs, t)
-        if track is not None and out.force is not None:
-            track = replace(track, force_cmd=out.force)
-        return replace(out, tracking=track, result=result, next_controller=hold,
-                       reason=f'{self.mode.name} ended: {message}')
-
-
-class LinearController(_TrajectoryController):
+class LinearController(_ThesisTrajectory):
     """LINEAR (mode 2): slide a distance along a trapezoid (§4.5, §4.2, §4.9).
 
     Args:
@@ -705,8 +772,11 @@ class LinearController(_TrajectoryController):
     def _stop_threshold(self) -> float:
         return self._p.linear.stop_speed
 
+    def _tolerance(self) -> float:
+        return self._p.trajectory.position_tolerance
 
-class RotationalController(_TrajectoryController):
+
+class RotationalController(_ThesisTrajectory):
     """ROTATIONAL (mode 1): rotate the object an angle along a trapezoid (§4.6, §4.2, §4.9).
 
     Args:
@@ -720,6 +790,7 @@ class RotationalController(_TrajectoryController):
     """
 
     mode = SlipMode.ROTATIONAL
+    unit = ('deg', 180.0 / math.pi)
 
     def __init__(self, params: SlipControllerParams, contact: ControlContact, angle: float,
                  duration: float, t_start: float, latch: bool = False) -> None:
@@ -784,3 +855,6 @@ class RotationalController(_TrajectoryController):
 
     def _stop_threshold(self) -> float:
         return self._p.rotational.stop_rate
+
+    def _tolerance(self) -> float:
+        return self._p.trajectory.angle_tolerance

@@ -19,6 +19,13 @@ Rules (SI arguments; CE-1, CE-4):
   a zero ``direction`` (xy) or ``latch_direction`` latches the direction from the first
   motion;
 * ROTATIONAL: the same duration rule, ``0 < |angle| ≤ max_angle``;
+* control law: ``request.control_law`` names the law family (`CONTROL_LAWS`: ``thesis``, the
+  reference laws of control_and_estimation §4; ``model``, the model-based laws of
+  docs/model_slip_control.md §1); empty means the parameter ``default_control_law``, and a mode
+  without that law then uses ``thesis``. An explicit law the mode does not have is refused.
+  The controller is built by the factory registered for ``(mode, law)`` in `CONTROLLERS`; a
+  factory may refuse a request it cannot carry out (`RequestRefused`, e.g. a slip the measured
+  load cannot produce), with the reason, before anything changes;
 * contact properties: HOLD and ROTATIONAL need valid ``μ_c`` and ``r`` (both fingers
   ``linear_valid`` and ``rotational_valid``), LINEAR and HINGE need valid ``μ_c`` (both fingers
   ``linear_valid``). DEFAULT sets are never accepted. A PRESET set is accepted only with
@@ -29,14 +36,22 @@ Rules (SI arguments; CE-1, CE-4):
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
+from types import MappingProxyType
 
 from slip_control.core.contact import ContactProperties, ContactSource
 from slip_control.core.controllers import (ControlContact, HingeController, HoldController,
                                            LinearController, OffController,
                                            RotationalController, SlipController, SlipMode,
                                            SlipResult)
-from slip_control.core.params import SlipControllerParams
+from slip_control.core.model_hinge import ModelHingeController, static_ratio
+from slip_control.core.model_hold import ModelHoldController
+from slip_control.core.model_linear import ModelLinearController
+from slip_control.core.model_rotational import ModelRotationalController
+from slip_control.core.model_trajectory import RequestRefused
+from slip_control.core.params import CONTROL_LAWS, SlipControllerParams
+from slip_control.core.signals import SensorSnapshot
 
 _MODE_NAMES = ', '.join(f'{m.value} {m.name}' for m in SlipMode)
 
@@ -52,7 +67,8 @@ class ModeRequest:
         angle: Signed slip angle about ``gripper_middle`` +z [rad] (ROTATIONAL).
         direction: LINEAR slip direction in ``gripper_middle`` (xy used; zero = latch).
         latch_direction: Take the direction (LINEAR) or sign (ROTATIONAL) from the first
-            motion.
+            motion (the model laws take it from the measured load instead).
+        control_law: Law family (`CONTROL_LAWS`); '' = the ``default_control_law`` parameter.
     """
 
     mode: int
@@ -61,6 +77,7 @@ class ModeRequest:
     angle: float = 0.0
     direction: tuple[float, float, float] = (0.0, 0.0, 0.0)
     latch_direction: bool = False
+    control_law: str = ''
 
 
 @dataclass(frozen=True, slots=True)
@@ -75,6 +92,7 @@ class SwitchOutcome:
             ``timeout = 0`` (valid until replaced); ``None`` if there is nothing to hand over.
         preempted: Result of a trajectory that the new request aborted ("preempted").
         preset_in_use: The accepted properties are a preset (diagnostics WARN).
+        control_law: Law family of the new controller ('' when rejected or OFF).
     """
 
     ok: bool
@@ -83,6 +101,122 @@ class SwitchOutcome:
     final_force: float | None = None
     preempted: SlipResult | None = None
     preset_in_use: bool = False
+    control_law: str = ''
+
+
+@dataclass(frozen=True, slots=True)
+class BuildContext:
+    """What a controller factory gets: a request that passed `validate_request`.
+
+    Attributes:
+        request: The request (SI).
+        mode: Its mode.
+        props: The contact properties it was validated against.
+        contact: Their two-finger means (``r`` left out where the mode allows it).
+        params: Controller parameters (snapshotted into the controller).
+        t: Request time [s]: a trajectory starts here.
+        last_force: Last force of the controller in charge [N] (hand-over), or ``None``.
+        inputs: Latest sensor samples (the model laws measure the load from them), or
+            ``None`` when the caller has none.
+    """
+
+    request: ModeRequest
+    mode: SlipMode
+    props: ContactProperties
+    contact: ControlContact
+    params: SlipControllerParams
+    t: float
+    last_force: float | None
+    inputs: SensorSnapshot | None
+
+
+#: ``factory(context) -> controller``; raises `RequestRefused` with the reason to refuse.
+ControllerFactory = Callable[[BuildContext], SlipController]
+
+
+def _thesis_hold(c: BuildContext) -> SlipController:
+    return HoldController(c.params, c.contact, initial_force=c.last_force)
+
+
+def _thesis_hinge(c: BuildContext) -> SlipController:
+    return HingeController(c.params, c.contact, initial_force=c.last_force)
+
+
+def _latched_direction(request: ModeRequest) -> tuple[float, float] | None:
+    """The LINEAR direction (xy) of a request, or ``None`` to latch it."""
+    dx, dy = request.direction[0], request.direction[1]
+    return None if request.latch_direction or not math.hypot(dx, dy) > 0.0 else (dx, dy)
+
+
+def _thesis_linear(c: BuildContext) -> SlipController:
+    r = c.request
+    return LinearController(c.params, c.contact, r.distance, r.duration, c.t,
+                            direction=_latched_direction(r))
+
+
+def _thesis_rotational(c: BuildContext) -> SlipController:
+    r = c.request
+    return RotationalController(c.params, c.contact, r.angle, r.duration, c.t,
+                                latch=r.latch_direction)
+
+
+def _model_linear(c: BuildContext) -> SlipController:
+    r = c.request
+    return ModelLinearController.for_request(c.params, c.props, c.contact, r.distance,
+                                             r.duration, c.t, _latched_direction(r), c.inputs,
+                                             initial_force=c.last_force)
+
+
+def _model_rotational(c: BuildContext) -> SlipController:
+    r = c.request
+    return ModelRotationalController.for_request(c.params, c.props, c.contact, r.angle,
+                                                 r.duration, c.t, r.latch_direction, c.inputs,
+                                                 initial_force=c.last_force)
+
+
+def _model_hold(c: BuildContext) -> SlipController:
+    return ModelHoldController(c.params, c.contact, initial_force=c.last_force)
+
+
+def _model_hinge(c: BuildContext) -> SlipController:
+    return ModelHingeController.for_request(c.params, c.contact, c.inputs,
+                                            initial_force=c.last_force,
+                                            static_ratio=static_ratio(c.props))
+
+
+#: The controller factory of each ``(mode, control law)``; OFF needs none. A mode missing a
+#: law here refuses that law when it is requested explicitly (a default falls back to thesis).
+CONTROLLERS: Mapping[tuple[SlipMode, str], ControllerFactory] = MappingProxyType({
+    (SlipMode.HOLD, 'thesis'): _thesis_hold,
+    (SlipMode.HINGE, 'thesis'): _thesis_hinge,
+    (SlipMode.LINEAR, 'thesis'): _thesis_linear,
+    (SlipMode.ROTATIONAL, 'thesis'): _thesis_rotational,
+    (SlipMode.LINEAR, 'model'): _model_linear,
+    (SlipMode.ROTATIONAL, 'model'): _model_rotational,
+    (SlipMode.HOLD, 'model'): _model_hold,
+    (SlipMode.HINGE, 'model'): _model_hinge,
+})
+
+
+def resolve_control_law(request: ModeRequest, params: SlipControllerParams
+                        ) -> tuple[str, str]:
+    """The law a request runs with: ``(law, '')``, or ``('', why not)``.
+
+    Args:
+        request: The request (its mode must be a valid `SlipMode`).
+        params: Controller parameters (``default_control_law``).
+    """
+    law = request.control_law or params.default_control_law
+    if law not in CONTROL_LAWS:
+        return '', (f'unknown control_law {request.control_law!r} (expected '
+                    f'{", ".join(CONTROL_LAWS)}, or empty for the default)')
+    mode = SlipMode(request.mode)
+    if mode == SlipMode.OFF or (mode, law) in CONTROLLERS:
+        return law, ''
+    if not request.control_law:
+        return 'thesis', ''
+    have = ', '.join(sorted(k[1] for k in CONTROLLERS if k[0] == mode))
+    return '', f'{mode.name} has no {law!r} control law (available: {have})'
 
 
 def _finite(*values: float) -> bool:
@@ -159,6 +293,9 @@ def validate_request(request: ModeRequest, props: ContactProperties | None,
         if request.distance > p.max_linear_distance:
             return False, (f'distance = {request.distance!r} m is beyond the grasp '
                            f'(max_linear_distance = {p.max_linear_distance} m)')
+    _, why = resolve_control_law(request, params)
+    if why:
+        return False, why
     if mode == SlipMode.ROTATIONAL:
         if not abs(request.angle) > 0.0:
             return False, f'angle = {request.angle!r} rad must be non-zero'
@@ -170,11 +307,13 @@ def validate_request(request: ModeRequest, props: ContactProperties | None,
 
 def build_controller(request: ModeRequest, props: ContactProperties | None,
                      params: SlipControllerParams, t: float,
-                     previous: SlipController | None = None) -> SwitchOutcome:
+                     previous: SlipController | None = None,
+                     inputs: SensorSnapshot | None = None) -> SwitchOutcome:
     """Validate ``request`` and build the complete controller for it (CE-2).
 
-    Nothing is mutated when the request is rejected. When it is accepted, a running
-    trajectory of ``previous`` is aborted with "preempted" (reported in ``preempted``).
+    Nothing is mutated when the request is rejected (by validation or by the law's factory).
+    When it is accepted, a running trajectory of ``previous`` is aborted with "preempted"
+    (reported in ``preempted``).
 
     Args:
         request: The request (SI).
@@ -182,6 +321,7 @@ def build_controller(request: ModeRequest, props: ContactProperties | None,
         params: Controller parameters (snapshotted into the new controller).
         t: Request time [s] on the stamps' clock: the trajectory starts here.
         previous: Controller currently in charge (for hand-over force and preemption).
+        inputs: Latest sensor samples (the model laws measure the load at the request).
 
     Returns:
         The outcome; swap ``outcome.controller`` in when ``outcome.ok``.
@@ -196,33 +336,36 @@ def build_controller(request: ModeRequest, props: ContactProperties | None,
         return SwitchOutcome(True, 'OFF', OffController(params), final_force=last,
                              preempted=preempted)
     assert props is not None
+    law, _ = resolve_control_law(request, params)
     contact = ControlContact.from_properties(
         props, use_r=mode in (SlipMode.HOLD, SlipMode.ROTATIONAL) or props.valid)
-    controller: SlipController
-    if mode == SlipMode.HOLD:
-        controller = HoldController(params, contact, initial_force=last)
-        text = 'HOLD'
-    elif mode == SlipMode.HINGE:
-        controller = HingeController(params, contact, initial_force=last)
-        text = 'HINGE'
-    elif mode == SlipMode.LINEAR:
-        dx, dy = request.direction[0], request.direction[1]
-        latch = request.latch_direction or not math.hypot(dx, dy) > 0.0
-        controller = LinearController(params, contact, request.distance, request.duration, t,
-                                      direction=None if latch else (dx, dy))
-        how = 'latched' if latch else f'({dx:.3f}, {dy:.3f})'
-        text = (f'LINEAR {request.distance:.4f} m in {request.duration:.3f} s, '
-                f'direction {how}')
-    else:
-        controller = RotationalController(params, contact, request.angle, request.duration, t,
-                                          latch=request.latch_direction)
-        text = (f'ROTATIONAL {request.angle:.4f} rad in {request.duration:.3f} s'
-                f'{", sign latched" if request.latch_direction else ""}')
+    context = BuildContext(request, mode, props, contact, params, t, last, inputs)
+    try:
+        controller = CONTROLLERS[(mode, law)](context)
+    except RequestRefused as exc:
+        return SwitchOutcome(False, f'{mode.name} ({law} law) refused: {exc}')
+    text = _describe(request, mode)
+    if law != 'thesis':
+        text += f' ({law} law)'
     preempted = previous.abort('preempted', t) if previous is not None else None
     preset = contact.source == ContactSource.PRESET
     if preset:
         text += f' (WARN: preset {contact.preset_name!r} in use)'
-    return SwitchOutcome(True, text, controller, preempted=preempted, preset_in_use=preset)
+    return SwitchOutcome(True, text, controller, preempted=preempted, preset_in_use=preset,
+                         control_law=law)
+
+
+def _describe(request: ModeRequest, mode: SlipMode) -> str:
+    """One line for the outcome message and the log."""
+    if mode == SlipMode.LINEAR:
+        d = _latched_direction(request)
+        how = 'latched' if d is None else f'({d[0]:.3f}, {d[1]:.3f})'
+        return (f'LINEAR {request.distance:.4f} m in {request.duration:.3f} s, '
+                f'direction {how}')
+    if mode == SlipMode.ROTATIONAL:
+        return (f'ROTATIONAL {request.angle:.4f} rad in {request.duration:.3f} s'
+                f'{", sign latched" if request.latch_direction else ""}')
+    return mode.name
 
 
 def with_params(controller: SlipController,
@@ -248,6 +391,12 @@ def with_params(controller: SlipController,
         return OffController(params, controller.contact)
     if isinstance(controller, HingeController):
         return HingeController(params, controller.contact, initial_force=last)
+    # The model HOLD and HINGE keep their law (what they learned online starts again).
+    if isinstance(controller, ModelHingeController):
+        return ModelHingeController(params, controller.contact, initial_force=last,
+                                    static_ratio=controller.mu_s_ratio)
+    if isinstance(controller, ModelHoldController):
+        return ModelHoldController(params, controller.contact, initial_force=last)
     return HoldController(params, controller.contact, initial_force=last)
 
 

@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: Apache-2.0
-"""Parameter sets of the slip_control nodes as frozen dataclasses (ros_interfaces spec §6.4–6.6).
+"""Parameter sets of the slip_control nodes as frozen dataclasses (ros_interfaces §6.4–6.6).
 
 One dataclass per node; groups are nested dataclasses flattened with ``.`` by
 `slip_cell_common.core.param_schema` (``linear.kp``). Defaults are those of
@@ -16,6 +16,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
+from slip_cell_common.core import names
 from slip_cell_common.core.frames import FrameParams
 from slip_cell_common.core.param_schema import ParameterError, check_value, flatten, specs
 from slip_cell_common.core.param_schema import ranged_field as _f
@@ -59,6 +60,11 @@ class EstimatorLinearParams:
                               'skip linear samples rotating faster than this')
     static_speed: float = _f(0.002, 'm/s', 0.0, 0.1,
                              'below this sliding speed a sample counts as static')
+    fit_min_speed: float = _f(0.006, 'm/s', 0.0, 0.1,
+                              '(addition) sliding samples slower than this stay out of the '
+                              'mu_c/mu_v fit: near the Stribeck speed the static excess of '
+                              'friction biases mu_c up (falls back to every sliding sample '
+                              'when too few are faster)')
 
 
 @dataclass(frozen=True)
@@ -67,8 +73,20 @@ class EstimatorRotationalParams:
 
     min_abs_omega: float = _f(0.1, 'rad/s', 0.0, 10.0,
                               'skip rotational samples turning slower than this')
-    max_speed: float = _f(0.005, 'm/s', 0.0, 0.1,
-                          'skip rotational samples translating faster than this')
+    max_speed: float = _f(0.02, 'm/s', 0.0, 0.1,
+                          'skip rotational samples whose pad centre translates faster than '
+                          'this (the load-share gate below does the fine selection)')
+    max_load_share: float = _f(0.5, '-', 0.05, 1.0,
+                               '(addition) skip samples whose tangential force exceeds this '
+                               'share of mu_c f_n, far from pure rotation (unless fewer than '
+                               'min_samples_rotational would remain)')
+    min_slip_speed: float = _f(0.002, 'm/s', 0.0, 0.1,
+                               '(addition) skip samples whose rotational sliding speed r |w| '
+                               'is below this (Stribeck region); lowered to half, then a '
+                               'quarter, when too few samples are faster')
+    viscous_shape: float = _f(1.2, '-', 0.5, 3.0,
+                              '(addition) u / r^2 of the pressure map, used to remove the '
+                              'viscous torque mu_v u |w| (9/8 uniform disc, 4/3 line)')
 
 
 @dataclass(frozen=True)
@@ -113,18 +131,27 @@ class EstimatorOnlineParams:
 
 @dataclass(frozen=True)
 class ContactEstimatorParams:
-    """Parameters of ``slip_control/contact_estimator`` (ros_interfaces §6.4)."""
+    """Parameters of ``slip_control/contact_estimator`` (ros_interfaces §6.4).
+
+    ``frames`` (the pad offset locates the centre of pressure from the sensor torques) comes
+    from the shared ``cell.yaml`` in a graph, like the slip controller's.
+    """
 
     linear: EstimatorLinearParams = _group(EstimatorLinearParams)
     rotational: EstimatorRotationalParams = _group(EstimatorRotationalParams)
     min_normal_force: float = _f(1.0, 'N', 0.0, 100.0, 'skip samples with f_n below this')
-    u_clamp_factor: float = _f(5.0, '-', 1.0, 1000.0, 'u = r^2 when |u| exceeds this times r^2')
     min_samples_linear: int = _i(20, 3, 1000000, 'sliding samples needed for linear_valid')
     min_samples_rotational: int = _i(20, 3, 1000000,
                                      'rotational samples needed for rotational_valid')
     min_speed_span: float = _f(0.002, 'm/s', 0.0, 1.0,
                                'speed span needed to fit mu_v (viscous_valid)')
     mu_c_max: float = _f(2.0, '-', 1e-3, 10.0, 'largest plausible mu_c')
+    mu_c_std_floor: float = _f(0.001, '-', 0.0, 1.0,
+                               '(addition) model-error 1-sigma added in quadrature to the fit '
+                               'std of mu_c (calibrated on a population, docs/evaluation.md)')
+    r_std_floor: float = _f(0.02, '-', 0.0, 1.0,
+                            '(addition) model-error 1-sigma of r as a fraction of r, added in '
+                            'quadrature (ellipsoidal limit surface vs the pad\'s own)')
     r_min: float = _f(0.001, 'm', 1e-6, 1.0, 'smallest plausible torsional radius')
     r_max: float = _f(0.05, 'm', 1e-6, 1.0, 'largest plausible torsional radius')
     sync_tolerance: float = _f(0.020, 's', 0.0, 1.0,
@@ -134,6 +161,7 @@ class ContactEstimatorParams:
                               '(addition) contact/start refuses a LINEAR/ROTATIONAL phase when '
                               'a sensor stream is missing or its latest sample is older')
     online: EstimatorOnlineParams = _group(EstimatorOnlineParams)
+    frames: FrameParams = _group(FrameParams)
     preset_file: str = field(default='', metadata={
         'read_only': True, 'description': 'CSV or YAML file with contact presets'})
     preset_name: str = field(default='', metadata={
@@ -218,11 +246,224 @@ class HingeParams:
 
 
 @dataclass(frozen=True)
+class TwistObserverParams:
+    """(addition) Kalman filter of the slip twist used by the ``model`` HOLD and HINGE
+    (twist_observer)."""
+
+    accel_std: float = _f(0.3, 'm/s^2', 1e-4, 100.0,
+                          'std of the slip acceleration driving the observer model')
+    velocity_noise: float = _f(0.0005, 'm/s', 1e-6, 0.1,
+                               'std of one velocity sample (quantisation and noise)')
+    detect_speed: float = _f(0.0015, 'm/s', 1e-5, 0.1,
+                             'estimated translation speed above which the object slips')
+    detect_rate: float = _f(0.05, 'rad/s', 1e-4, 10.0,
+                            'estimated rotation rate above which the object slips')
+
+
+@dataclass(frozen=True)
+class ModelHoldParams:
+    """(addition) HOLD with the ``model`` law (model_hold): the force the measured load needs."""
+
+    margin: float = _f(1.5, '-', 1.0, 10.0, 'factor on the limit-surface force D/mu_c')
+    extra_force: float = _f(0.5, 'N', 0.0, 40.0, 'force added to margin*D/mu_c')
+    max_margin: float = _f(1.5, '-', 1.0, 10.0,
+                           'the force stays below (max_margin + learned margin) times the '
+                           'remembered sustained D/mu_c, plus max_extra_force')
+    max_extra_force: float = _f(0.9, 'N', 0.0, 40.0, 'see max_margin')
+    slip_gain: float = _f(100.0, 's/m', 0.0, 10000.0,
+                          'force per observed slip speed, relative to max(need, min_force)')
+    adapt_gain: float = _f(500.0, '1/m', 0.0, 1.0e6,
+                           'learned extra margin per metre of observed slip path beyond '
+                           'adapt_deadzone')
+    adapt_deadzone: float = _f(0.001, 'm', 0.0, 1.0,
+                               'slip path (in the decaying memory) that teaches nothing: a '
+                               'tap beyond the margin may slip this much')
+    adapt_decay: float = _f(5.0, 's', 0.0, 3600.0,
+                            'time constant of the slip path\'s decay (0 = never)')
+    adapt_max: float = _f(1.0, '-', 0.0, 10.0, 'largest learned extra margin')
+    load_filter_time: float = _f(0.008, 's', 0.0, 1.0,
+                                 'time constant of the load low-pass (sensor noise)')
+    sustain_time: float = _f(0.05, 's', 0.0, 1.0,
+                             'a load counts as sustained once it lasted this long (a shorter '
+                             'tap does not raise the force bound)')
+    memory_time: float = _f(5.0, 's', 0.0, 3600.0,
+                            'time constant of the decay of the remembered sustained need')
+    fall_time: float = _f(0.3, 's', 0.0, 60.0, 'time constant of a force decrease')
+
+
+@dataclass(frozen=True)
+class ModelHingeParams:
+    """(addition) HINGE with the ``model`` law (model_hinge): turn freely, do not translate."""
+
+    cor_offset: float = _f(0.003, 'm', 1e-4, 0.1,
+                           'allowed offset of the centre of rotation from the grasp point '
+                           '(grasp-point translation per radian of turn)')
+    max_load_ratio: float = _f(0.95, '-', 0.1, 1.0,
+                               'largest f_t/(mu_c F): the force never falls below '
+                               'ft/(mu_c max_load_ratio)')
+    translation_gain: float = _f(300.0, 's/m', 0.0, 100000.0,
+                                 'relative force increase per translation speed beyond '
+                                 'cor_offset*|omega|')
+    rotation_damping: float = _f(0.5, 's/rad', 0.0, 100.0,
+                                 'relative force increase per observed rotation rate (damps '
+                                 'the swing)')
+    adapt_up: float = _f(0.0, '-', 0.0, 1000.0,
+                         'the force factor changes by e^adapt_up per cor_offset of translation '
+                         'beyond (or short of) cor_offset per radian of turn')
+    quasi_static_rate: float = _f(1.0, 'rad/s', 0.0, 100.0,
+                                  'the factor adapts to translation only while |omega| is '
+                                  'below this (a faster swing is inertial)')
+    release_rate: float = _f(0.0, '1/s', 0.0, 100.0,
+                             'decay rate of the force factor while the object is stuck under '
+                             'a torque that would turn it about a centre within release_cor')
+    release_cor: float = _f(0.009, 'm', 1e-4, 1.0,
+                            'stuck objects are released while r^2 ft/|tau| is below this')
+    swing_fraction: float = _f(0.8, '-', 0.1, 1.0,
+                               'the force is at most this fraction of the one at which the load '
+                               'at the request breaks static friction (so the object swings)')
+    static_ratio: float = _f(1.3, '-', 1.0, 3.0,
+                             'mu_s/mu_c assumed when the properties carry no valid mu_s')
+    min_torque: float = _f(0.0005, 'N*m', 0.0, 1.0,
+                           'mean torque below this counts as no torque (sensor noise)')
+    min_factor: float = _f(0.3, '-', 0.01, 1.0, 'smallest learned force factor')
+    max_factor: float = _f(4.0, '-', 1.0, 100.0, 'largest learned force factor')
+
+
+@dataclass(frozen=True)
 class TrajectoryParams:
     """Trapezoidal reference trajectories (§4.3)."""
 
     accel_fraction: float = _f(0.2, '-', 0.01, 0.5,
                                'acceleration (and deceleration) time as a fraction of T')
+    position_tolerance: float = _f(
+        0.001, 'm', 1e-6, 0.1,
+        '(addition) LINEAR ends "done" only within this of the distance; otherwise it ends '
+        '"stalled" or "timeout" at T + settle_timeout')
+    angle_tolerance: float = _f(
+        0.01745, 'rad', 1e-6, 1.0,
+        '(addition) ROTATIONAL ends "done" only within this of the angle (1 deg)')
+
+
+#: Pressure shapes the model-based laws can assume (friction_models STANDARD_SURFACES).
+PRESSURE_SHAPES: tuple[str, ...] = ('square', 'circle', 'line', 'line_grad', 'line_grad_x',
+                                    'non_convex_1', 'non_convex_2')
+
+#: Control-law families of the slip modes (docs/model_slip_control.md §1).
+CONTROL_LAWS: tuple[str, ...] = ('thesis', 'model')
+
+
+@dataclass(frozen=True)
+class ModelParams:
+    """Model-based slip laws: the friction model and what they share
+    (docs/model_slip_control.md §2, §3)."""
+
+    pressure_shape: str = field(default='circle', metadata={
+        'choices': PRESSURE_SHAPES,
+        'description': 'pressure map assumed for the pads\' limit surface (scaled to the '
+                       'estimated r)'})
+    stribeck_velocity: float = _f(1.0e-3, 'm/s', 1e-6, 1.0,
+                                  'Stribeck velocity v_s of the friction model')
+    gravity: float = _f(9.81, 'm/s^2', 0.1, 100.0, 'gravity (object mass from its static load)')
+    min_force: float = _f(0.6, 'N', 0.0, 40.0, 'smallest grasp force commanded')
+    max_force: float = _f(40.0, 'N', 0.1, 80.0, 'largest grasp force commanded (gripper limit)')
+    refusal_margin: float = _f(
+        1.0, '-', 0.5, 10.0,
+        'a slip is refused when the load is below this times what static friction carries at '
+        'min_force (1.0: only what the model says is impossible)')
+    no_slip_time: float = _f(0.5, 's', 0.01, 10.0,
+                             'at min_force without motion this long ends "no slip at minimum '
+                             'force"')
+    ft_noise: float = _f(0.03, 'N', 1e-4, 10.0,
+                         '1-sigma of the two-finger mean tangential force (observer)')
+    breakaway_rate: float = _f(1.0, '1/s', 0.0, 100.0,
+                               'while the object sticks behind the reference, the force is '
+                               'lowered by this fraction per second until it moves')
+    breakaway_max: float = _f(0.9, '-', 0.0, 0.99, 'largest break-away reduction')
+    max_scale: float = _f(3.0, '-', 1.0, 100.0,
+                          'largest factor the feedback applies to the model force')
+    arrival_scale: float = _f(1.5, '-', 1.0, 100.0,
+                              'factor on the model force once the object arrived (within half '
+                              'the tolerance, decelerating) but still moves')
+    fall_rate: float = _f(5.0, '1/s', 0.0, 1000.0,
+                          'the force command falls at most this fraction per second '
+                          '(exponentially; rises act at once; 0 = no limit)')
+
+
+@dataclass(frozen=True)
+class ModelLinearParams:
+    """Model-based LINEAR slip (docs/model_slip_control.md §4)."""
+
+    bandwidth: float = _f(70.0, 'rad/s', 0.1, 200.0,
+                          'natural frequency of the tracking-error dynamics')
+    damping: float = _f(1.0, '-', 0.1, 5.0, 'damping ratio of the tracking-error dynamics')
+    integral: float = _f(0.03, '-', 0.0, 5.0,
+                         'integral gain as a fraction of bandwidth^3')
+    force_lag: float = _f(0.02, 's', 0.0, 1.0,
+                          'lead for the inner grasp-force loop: the rate feedback acts on the '
+                          'observed rate this far ahead (rate + acceleration x lag)')
+    adaptation: float = _f(0.05, 's', 0.0, 10.0,
+                           'time constant of the online friction correction from the F/T '
+                           'while sliding (0 = off)')
+    motion_speed: float = _f(0.002, 'm/s', 1e-5, 0.1,
+                             'observed speed above which the object counts as sliding')
+    torque_share: float = _f(0.5, '-', 0.0, 1.0,
+                             'share of the measured load torque the model force carries '
+                             '(0: translation only; the object then turns towards hanging '
+                             'while it slides)')
+    keep_speed: float = _f(0.003, 'm/s', 0.0, 0.1,
+                           'before the deceleration the speed set-point stays at least this, '
+                           'so an object ahead slows down instead of sticking')
+    torque_time: float = _f(0.3, 's', 0.0, 10.0,
+                            'time constant of the load-torque estimate (slow: the friction '
+                            'torque collapses for a moment when the object breaks away, the '
+                            'load does not)')
+    max_turn: float = _f(1.0472, 'rad', 0.0, 6.3,
+                         'a slide during which the object turns more than this ends "turned '
+                         '… while sliding" (the load torque swings it; 0 = never)')
+    max_direction_error: float = _f(
+        1.0472, 'rad', 0.0, 3.1416,
+        'a commanded direction further than this from the static load is refused')
+    jerk_psd: float = _f(100.0, 'm^2/s^5', 1e-9, 1e6, 'observer: white-jerk spectral density')
+    position_noise: float = _f(1.0e-5, 'm', 1e-9, 0.01, 'observer: travel noise (1-sigma)')
+    stop_speed: float = _f(0.002, 'm/s', 0.0, 0.1,
+                           'after T, "done" needs the observed speed below this too')
+
+
+@dataclass(frozen=True)
+class ModelRotationalParams:
+    """Model-based ROTATIONAL slip (docs/model_slip_control.md §5)."""
+
+    bandwidth: float = _f(30.0, 'rad/s', 0.1, 200.0,
+                          'natural frequency of the tracking-error dynamics')
+    damping: float = _f(0.7, '-', 0.1, 5.0, 'damping ratio of the tracking-error dynamics')
+    integral: float = _f(0.6, '-', 0.0, 5.0,
+                         'integral gain as a fraction of bandwidth^3')
+    force_lag: float = _f(0.0, 's', 0.0, 1.0,
+                          'lead for the inner grasp-force loop (0: the turn\'s acceleration '
+                          'estimate is too noisy to lead with)')
+    motion_rate: float = _f(0.026, 'rad/s', 1e-5, 10.0,
+                            'observed rate above which the object counts as turning')
+    keep_rate: float = _f(0.0, 'rad/s', 0.0, 10.0,
+                          'before the deceleration the rate set-point stays at least this '
+                          '(0: the turn runs at Stribeck speeds, where sliding is unstable)')
+    translation_floor: float = _f(1.0, '-', 0.0, 10.0,
+                                  'the force never falls below this times ft/mu_c: the pads '
+                                  'keep carrying the tangential load whatever the torque '
+                                  'feedback asks')
+    gyration_radius: float = _f(0.04, 'm', 0.0, 1.0,
+                                'radius of gyration assumed for the object\'s inertia about '
+                                'its centre of mass (inertia = m (lever^2 + this^2))')
+    load_time: float = _f(0.1, 's', 0.0, 10.0,
+                          'time constant of the load-torque estimate (measured torque plus '
+                          'inertia times the observed acceleration)')
+    max_translation: float = _f(
+        0.005, 'm', 0.0, 0.1,
+        'a rotation whose limit-surface coupling slides the grasp point further than this over '
+        'the commanded angle is refused (lever too short for the torsional radius)')
+    jerk_psd: float = _f(3000.0, 'rad^2/s^5', 1e-9, 1e6, 'observer: white-jerk spectral density')
+    angle_noise: float = _f(1.0e-4, 'rad', 1e-9, 1.0, 'observer: turn noise (1-sigma)')
+    stop_rate: float = _f(0.03, 'rad/s', 0.0, 10.0,
+                          'after T, "done" needs the observed rate below this too')
 
 
 @dataclass(frozen=True)
@@ -248,8 +489,9 @@ class SlipControllerParams:
                                'finger-2 velocity stamp within this of finger 1')
     stale_confirm: float = _f(
         0.020, 's', 0.0, 0.5,
-        '(addition) longest wait on the steady clock before a stale verdict is acted on '
-        '(an executor backlog is not a stopped stream; see StaleDebounce)')
+        '(addition) longest wait on the node clock (simulated time under use_sim_time, the '
+        'steady clock on the system clock) before a stale verdict is acted on (an executor '
+        'backlog is not a stopped stream; see StaleDebounce)')
     command_timeout: float = _f(0.1, 's', 0.0, 10.0, 'expiry sent with each grasp-force command')
     dt_max: float = _f(0.1, 's', 1e-3, 10.0,
                        'sample intervals above this skip derivative and integral updates')
@@ -257,7 +499,17 @@ class SlipControllerParams:
     linear: LinearParams = _group(LinearParams)
     rotational: RotationalParams = _group(RotationalParams)
     hinge: HingeParams = _group(HingeParams)
+    twist_observer: TwistObserverParams = _group(TwistObserverParams)
+    hold_model: ModelHoldParams = _group(ModelHoldParams)
+    hinge_model: ModelHingeParams = _group(ModelHingeParams)
     trajectory: TrajectoryParams = _group(TrajectoryParams)
+    default_control_law: str = field(default='thesis', metadata={
+        'choices': CONTROL_LAWS,
+        'description': '(addition) control law of requests that leave control_law empty '
+                       '(modes without that law use thesis)'})
+    model: ModelParams = _group(ModelParams)
+    model_linear: ModelLinearParams = _group(ModelLinearParams)
+    model_rotational: ModelRotationalParams = _group(ModelRotationalParams)
     settle_timeout: float = _f(1.0, 's', 0.0, 60.0,
                                'a trajectory not finished by T + this ends with "timeout"')
     latch_speed: float = _f(0.002, 'm/s', 0.0, 0.1,
@@ -386,13 +638,15 @@ class MotionTimeParams:
 class RecordingParams:
     """In-process bag recording (§5.1, §5.3)."""
 
-    directory: str = field(default='bags', metadata={'description': 'bag output directory'})
+    directory: str = field(default='', metadata={
+        'description': 'bag output directory; empty = $SLIP_DATA_DIR/bags, else '
+                       '~/.local/share/slip_cell/bags (never the working directory)'})
     topics: tuple[str, ...] = field(default=(
-        'gripper/grasp_force_cmd', 'gripper/motor_command', 'gripper/status',
-        'finger_1/ft/wrench', 'finger_2/ft/wrench', 'finger_1/slip/twist',
-        'finger_2/slip/twist', 'gripper/static_frames', 'gripper/finger_frames',
-        'slip_control/tracking', 'slip_control/state', 'contact/properties', '/diagnostics',
-        'sim/state', 'sim/true_contact'),
+        names.GRASP_FORCE_CMD, names.MOTOR_COMMAND, names.GRIPPER_STATUS,
+        names.ft_wrench(1), names.ft_wrench(2), names.slip_twist(1),
+        names.slip_twist(2), names.STATIC_FRAMES, names.FINGER_FRAMES,
+        names.SLIP_TRACKING, names.SLIP_CONTROLLER_STATE, names.CONTACT_PROPERTIES,
+        names.DIAGNOSTICS, names.SIM_STATE, names.SIM_TRUE_CONTACT),
         metadata={'description': 'topics recorded by every handler (glob patterns; absent '
                                  'topics, e.g. sim/* on hardware, are simply not recorded)'})
 
@@ -412,6 +666,10 @@ class ExperimentRunnerParams:
     motion_time: MotionTimeParams = _group(MotionTimeParams)
     recording: RecordingParams = _group(RecordingParams)
     step_timeout: float = _f(30.0, 's', 0.1, 3600.0, 'default time limit of one runner step')
+    control_law: str = field(default='', metadata={
+        'choices': ('',) + CONTROL_LAWS,
+        'description': '(addition) control law named on every slip-mode request (thesis, '
+                       'model); empty = the slip controller\'s default_control_law'})
 
     def validate(self) -> None:
         """Raise `ParameterError` listing every problem (ranges and cross-field rules)."""
@@ -432,8 +690,3 @@ class ExperimentRunnerParams:
         """Default motion time [s] for a translation ``distance`` [m] and rotation [rad]."""
         m = self.motion_time
         return max(m.min, m.gain * (m.distance_weight * abs(distance) + abs(angle)))
-
-
-def all_param_classes() -> tuple[type, ...]:
-    """The node parameter classes of this package (for config-YAML tests)."""
-    return (ContactEstimatorParams, SlipControllerParams, ExperimentRunnerParams)

@@ -41,6 +41,8 @@ class WrenchSample:
         fz: Force z [N] (squeezing is negative).
         tz: Torque about z [N·m].
         stamp: Acquisition time [s].
+        tx: Torque about x [N·m] (NaN when the source gives only the planar part).
+        ty: Torque about y [N·m] (NaN likewise).
     """
 
     fx: float
@@ -48,6 +50,8 @@ class WrenchSample:
     fz: float
     tz: float
     stamp: float
+    tx: float = math.nan
+    ty: float = math.nan
 
     @property
     def normal_force(self) -> float:
@@ -60,8 +64,30 @@ class WrenchSample:
         return math.hypot(self.fx, self.fy)
 
     def finite(self) -> bool:
-        """All components and the stamp are finite numbers."""
+        """The planar components and the stamp are finite numbers."""
         return all(math.isfinite(x) for x in (self.fx, self.fy, self.fz, self.tz, self.stamp))
+
+    def centre_of_pressure(self, pad_offset: float) -> tuple[float, float] | None:
+        """Centre of pressure ``(c_x, c_y)`` on the pad [m, ``ft_sensor_k``], or None.
+
+        The contact force acts at ``(c_x, c_y, d)``, ``d`` = ``pad_offset`` (sensor origin to
+        pad surface), so ``Tx = c_y·Fz − d·Fy`` and ``Ty = d·Fx − c_x·Fz``. None without
+        ``Tx``/``Ty`` or without normal force.
+        """
+        if not (math.isfinite(self.tx) and math.isfinite(self.ty)) or self.fz == 0.0:
+            return None
+        return ((pad_offset * self.fx - self.ty) / self.fz,
+                (self.tx + pad_offset * self.fy) / self.fz)
+
+    def torque_about_cop(self, pad_offset: float) -> float:
+        """Torque about the pad normal through the centre of pressure [N·m].
+
+        ``τ_cop = Tz − (c_x·Fy − c_y·Fx)``; ``Tz`` itself when the centre is unknown.
+        """
+        c = self.centre_of_pressure(pad_offset)
+        if c is None:
+            return self.tz
+        return self.tz - (c[0] * self.fy - c[1] * self.fx)
 
 
 @dataclass(frozen=True, slots=True)

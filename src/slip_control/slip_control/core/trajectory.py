@@ -79,6 +79,17 @@ class TrapezoidalTrajectory:
         s = t - T + t_c
         return x_c + v_c * (t - t_c) - 0.5 * a * s * s, v_c - a * s
 
+    def accel_at(self, t: float) -> float:
+        """Reference acceleration at ``t`` [s] since the start [m/s² or rad/s²] (``+a``, 0,
+        ``−a`` over the three phases; 0 outside ``[0, T)``)."""
+        if t < 0.0 or t >= self.duration:
+            return 0.0
+        if t < self._t_c:
+            return self._a
+        if t < self.duration - self._t_c:
+            return 0.0
+        return -self._a
+
     def sample_array(self, t: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Vectorised `sample`: ``t`` of any shape [s] → (positions, velocities), same shape."""
         tt = np.asarray(t, dtype=np.float64)

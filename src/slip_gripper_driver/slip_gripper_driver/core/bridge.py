@@ -1,15 +1,14 @@
 # SPDX-License-Identifier: Apache-2.0
-"""Gripper bridge core: telemetry in, voltage out, fail-safe (ROS-free).
+"""Gripper bridge: telemetry in, voltage out, fail-safe — the driver's host side (ROS-free).
 
-`GripperBridge` is the deterministic heart of the ``gripper_driver`` node. Per telemetry line
-(500 Hz, on the serial reader thread) it parses the line, updates the opening-rate observer,
-steps homing or the grasp-force controller, and writes exactly one ``T<volts>\\n`` command
-through an injected writer. Everything else (grasp-force commands, F/T samples, homing and
-stop requests, the link watchdog) arrives from other threads and is serialised by one lock,
-so a command is never written after a state change that forbids it.
-
-`GripperDriverCore` wires a bridge to a `transport.SerialLink` (port, reader thread,
-reconnection) and exposes the lifecycle steps a node needs.
+`GripperBridge` is the deterministic heart of the ``gripper_driver`` node, and the simulated
+cell (``friction_models.core.sim_cell``) runs the same class on its simulated telemetry. Per
+telemetry line (500 Hz, on the serial reader thread) it parses the line, updates the
+opening-rate observer, steps homing or the grasp-force controller, and writes exactly one
+``T<volts>\\n`` command through an injected writer. Everything else (grasp-force commands, F/T
+samples, homing and stop requests, the link watchdog) arrives from other threads and is
+serialised by one lock, so a command is never written after a state change that forbids it.
+`driver_core.GripperDriverCore` wires a bridge to its serial port.
 
 Fail-safe rules (issue 5 item 2, hardware_protocols §7):
 
@@ -18,15 +17,27 @@ Fail-safe rules (issue 5 item 2, hardware_protocols §7):
 * Grasp-force commands that are not finite, not expressible by the actuator
   (``|F| > voltage_limit · newton_per_volt``), with a bad timeout or a stamp from the future
   are rejected and counted, never used. Values within that range but beyond the target limits
-  are clipped by the controller (and counted here).
+  are clipped by the controller (and counted). See `grasp_command`.
 * Stale command (its timeout, or ``command.default_timeout`` when it carries none): the
   controller's ``on_command_timeout`` policy. Stale F/T: open loop; F/T fault: target limited
   to ``safe_hold_force`` (see `force_control`).
-* Link supervision (`check_watchdog`, called from a timer with the current time): no
-  telemetry for ``link.stale_after`` → the safe voltage is written and the driver is
-  **disarmed**; after ``link.fault_after`` the caller reconnects. A read/write error or a
+* Link supervision (`check_watchdog`, called from a timer with the current time) judges the
+  **device**, not the host: telemetry counts as missing only while no bytes wait at the port
+  (``input_pending``). No telemetry for ``link.stale_after`` → the safe voltage is written
+  once; the driver stays armed and the loop resumes with the next line. No telemetry for
+  ``link.fault_after`` → link fault: **disarmed**, the caller reconnects. Telemetry that waits
+  unprocessed (the host was descheduled, the firmware kept sending) is a host stall: nothing
+  is written, the firmware keeps the last command, and the first line processed afterwards
+  reports ``'host_stall'`` with how late it was; only a stall longer than
+  ``link.host_stall_limit`` writes the safe voltage and disarms. A read/write error or a
   vanished port is reported by the link at once. With a 10 ms timer, a silent link is
   detected within ``stale_after`` + 10 ms = 30 ms.
+* Backlog (`on_lines`): lines read together are stamped one firmware period apart (the
+  device's own clock: one line per period), update the parser, observer and status, and only
+  the newest telemetry line steps the controller and writes: no burst of catch-up commands.
+* Resumption: when the loop wrote nothing for ``link.stale_after`` (host stall, telemetry
+  gap), the force command moves from the last applied value toward the controller's at most
+  ``link.resume_rate`` N/s, with the integral held meanwhile.
 * Arming: activation arms. Any link fault, reconnection or firmware restart disarms; while
   disarmed the safe voltage is written on every line and grasp-force commands are ignored
   (counted). Only an explicit `GripperBridge.arm` call re-arms, and arming clears the target
@@ -34,37 +45,47 @@ Fail-safe rules (issue 5 item 2, hardware_protocols §7):
   and a new command alone is not an operator's confirmation that the cell is safe.
 * Deactivate/shutdown: the safe voltage is written first, then the driver goes inactive.
 * Firmware restart text after telemetry has flowed (``Voltage control``, SimpleFOC init):
-  homing invalidated, observer and controller reset, disarmed. The same text before the first
-  telemetry line of a connection is the boot banner and only counted.
-* Every (re)connection first writes the safe voltage, so the firmware (which applies its last
-  value forever) is in a known state.
+  homing invalidated, observer and controller reset, disarmed, counted as a firmware restart,
+  also when it arrives on a new connection (the real firmware is silent for ~5.7 s after a
+  reset, so the link faults and reconnects first; hardware_protocols §2.3). Restart text
+  before the first telemetry line of the process, or repeated before telemetry resumes, is
+  the same boot and only counted.
+* Every (re)connection first writes a bare newline and the safe voltage in one write, so a
+  fragment left in the firmware's buffer cannot merge with a command and the firmware (which
+  applies its last value forever) is in a known state. Every command is one write.
+* F/T bias (`bias_refusal`): refused while the pads may be loaded — a squeezing target, a
+  squeezing command being applied, a finger's biased F/T measuring normal force, or the
+  fingers not reopened since they stalled on something while squeezing (or the F/T saw
+  contact). A bias taken under load would absorb the load (issue 16).
 """
 from __future__ import annotations
 
 import math
 import threading
-from dataclasses import dataclass, field
-from enum import IntEnum
-from typing import Callable, NamedTuple
+from typing import NamedTuple
+from collections.abc import Callable, Sequence
 
-from slip_gripper_driver.core.force_control import (BypassReason, ForceControlParams,
-                                                    ForceLoopInput, ForceLoopOutput,
-                                                    GraspForceController)
-from slip_gripper_driver.core.homing import Homing, HomingParams, homing_refusal
-from slip_gripper_driver.core.observer import ObserverParams, RateObserver
-from slip_cell_common.core.param_schema import ParameterError
-from slip_gripper_driver.core.protocol import (ActuatorParams, CommandError, LineKind,
+from slip_gripper_driver.core.bridge_params import BridgeParams
+from slip_gripper_driver.core.force_control import (BypassReason, ForceLoopInput,
+                                                    ForceLoopOutput, GraspForceController)
+from slip_gripper_driver.core.grasp_command import GraspCommandGate
+from slip_gripper_driver.core.gripper_records import (BridgeDiagnostics, CommandResult,
+                                                      GripperStatusSnapshot, LineResult,
+                                                      LinkState, MotorCommandRecord,
+                                                      WatchdogResult)
+from slip_gripper_driver.core.homing import Homing, HomingResult, homing_refusal
+from slip_gripper_driver.core.observer import RateObserver
+from slip_gripper_driver.core.protocol import (CONNECT_FLUSH, TELEMETRY_PERIOD_S,
+                                               CommandError, LineKind, ParsedLine,
                                                TelemetryParser, encode_force_command,
                                                format_voltage_command, voltage_to_force)
-from slip_cell_common.core.serial_transport import (ByteStream, Clock, LinkError, LinkStats,
-                                                ReconnectParams, SerialLink, open_stream)
-from slip_cell_common.core.validation import validate_fields
-
-#: Commands stamped further in the future than this (relative to their arrival) are rejected
-#: as a clock mismatch between nodes [s].
-MAX_COMMAND_CLOCK_SKEW_S = 0.5
 
 _NAN = math.nan
+
+#: The fingers count as released from a contact once they opened this far beyond it [m].
+CONTACT_RELEASE_MARGIN_M = 0.002
+#: Squeezing with the fingers at rest for this long means they stalled on something [s].
+STALL_CONFIRM_S = 0.05
 
 #: Writes one command to the device; returns False when it was not written.
 Writer = Callable[[bytes], bool]
@@ -79,208 +100,6 @@ class _FtSlot(NamedTuple):
 
 
 _NO_FT = _FtSlot(_NAN, _NAN, False)
-
-
-@dataclass(frozen=True)
-class LinkParams:
-    """Telemetry supervision (parameter group ``link``)."""
-
-    stale_after: float = field(default=0.020, metadata={
-        'unit': 's', 'range': (0.004, 1.0),
-        'description': 'no telemetry for this long: safe voltage, disarm'})
-    fault_after: float = field(default=0.250, metadata={
-        'unit': 's', 'range': (0.01, 10.0),
-        'description': 'no telemetry for this long: reconnect'})
-
-    def validate(self) -> None:
-        """Raise `ParameterError` listing every invalid field."""
-        validate_fields(self, [] if self.fault_after >= self.stale_after else [
-            f'fault_after {self.fault_after} s is below stale_after {self.stale_after} s'])
-
-
-@dataclass(frozen=True)
-class CommandParams:
-    """Grasp-force command handling (parameter group ``command``)."""
-
-    default_timeout: float = field(default=0.0, metadata={
-        'unit': 's', 'range': (0.0, 60.0),
-        'description': 'expiry of commands that carry no timeout; 0 = valid until replaced'})
-
-    def validate(self) -> None:
-        """Raise `ParameterError` listing every invalid field."""
-        validate_fields(self)
-
-
-@dataclass(frozen=True)
-class BridgeParams:
-    """Everything the bridge core needs (nested groups flatten to ``actuator.*`` etc.)."""
-
-    actuator: ActuatorParams = field(default_factory=ActuatorParams)
-    link: LinkParams = field(default_factory=LinkParams)
-    observer: ObserverParams = field(default_factory=ObserverParams)
-    homing: HomingParams = field(default_factory=HomingParams)
-    force_control: ForceControlParams = field(default_factory=ForceControlParams)
-    command: CommandParams = field(default_factory=CommandParams)
-
-    def validate(self) -> None:
-        """Raise `ParameterError` listing the problems of every group and combination."""
-        problems: list[str] = []
-        for name in ('actuator', 'link', 'observer', 'homing', 'force_control', 'command'):
-            try:
-                getattr(self, name).validate()
-            except ParameterError as exc:
-                problems.append(f'{name}: {exc}')
-        homing_force = self.homing.voltage * self.actuator.newton_per_volt
-        if homing_force > self.force_control.max_command_force:
-            problems.append(f'homing.voltage {self.homing.voltage} V squeezes '
-                            f'{homing_force:.1f} N, above force_control.max_command_force')
-        if self.homing.voltage > self.actuator.voltage_limit:
-            problems.append(f'homing.voltage {self.homing.voltage} V exceeds '
-                            f'actuator.voltage_limit {self.actuator.voltage_limit} V')
-        if problems:
-            raise ParameterError('; '.join(problems))
-
-
-class LinkState(IntEnum):
-    """Telemetry link state seen by the watchdog."""
-
-    INACTIVE = 0  #: not activated (no supervision)
-    OK = 1
-    STALE = 2  #: no telemetry for stale_after: safe state
-    FAULT = 3  #: no telemetry for fault_after: reconnect
-    DOWN = 4  #: port closed (reconnecting)
-
-
-class WatchdogResult(NamedTuple):
-    """Result of `GripperBridge.check_watchdog`.
-
-    Attributes:
-        state: Link state.
-        age_s: Seconds since the last telemetry line (or since connection/activation).
-        reconnect: True once per fault: the caller must drop and reopen the port.
-        reason: Human-readable reason naming the condition.
-    """
-
-    state: LinkState
-    age_s: float
-    reconnect: bool
-    reason: str
-
-
-class CommandResult(NamedTuple):
-    """Outcome of a request (command, arm, homing).
-
-    Attributes:
-        accepted: True when the request took effect.
-        reason: Why it was refused, or a short confirmation.
-    """
-
-    accepted: bool
-    reason: str
-
-
-@dataclass(frozen=True, slots=True)
-class GripperStatusSnapshot:
-    """Fields of ``slip_msgs/GripperStatus`` (SI; ``stamp`` = acquisition time [s])."""
-
-    stamp: float
-    line_count: int
-    bad_line_count: int
-    reconnect_count: int
-    motor_angle: float
-    opening: float
-    opening_rate: float
-    voltage_cmd: float
-    force_cmd: float
-    force_target: float
-    measured_grasp_force: float
-    homed: bool
-    ft_biased: bool
-    ft_fresh: bool
-    link_ok: bool
-    in_contact: bool
-    command_expired: bool
-    armed: bool
-    safe_state: bool
-
-
-@dataclass(frozen=True, slots=True)
-class MotorCommandRecord:
-    """Fields of ``slip_msgs/MotorCommand`` for one controller step (``stamp`` [s])."""
-
-    stamp: float
-    force_target: float
-    force_cmd: float
-    voltage_cmd: float
-    measured_force: float
-    error: float
-    integral: float
-    gain_scale: float
-    closed_loop: bool
-    bypass_reason: int
-
-
-class LineResult(NamedTuple):
-    """What one line did.
-
-    Attributes:
-        stamp: Acquisition stamp of the line [s].
-        kind: Line classification.
-        command: Bytes written to the device (None if nothing was written).
-        written: The writer reported success.
-        status: Status after a telemetry line (None for other lines).
-        motor: Controller step record (None unless the controller stepped).
-        event: ``''``, ``'firmware_restart'``, ``'homing_done'`` or ``'homing_failed'``.
-    """
-
-    stamp: float
-    kind: LineKind
-    command: bytes | None
-    written: bool
-    status: GripperStatusSnapshot | None
-    motor: MotorCommandRecord | None
-    event: str
-
-
-@dataclass(frozen=True)
-class BridgeDiagnostics:
-    """Counters and state for diagnostics (ages in s, forces in N)."""
-
-    active: bool
-    armed: bool
-    safe_reason: str
-    link_state: LinkState
-    line_age_s: float
-    lines_good: int
-    lines_bad: int
-    lines_unknown: int
-    lines_non_finite: int
-    lines_too_long: int
-    firmware_rejects: int
-    firmware_restarts: int
-    reconnects: int
-    link_losses: int
-    stale_events: int
-    link_faults: int
-    writes: int
-    write_failures: int
-    commands_accepted: int
-    commands_rejected: int
-    rejected_by_reason: tuple[tuple[str, int], ...]
-    commands_ignored: int
-    targets_clipped: int
-    command_age_s: float
-    command_source: int
-    homed: bool
-    homing_active: bool
-    homing_message: str
-    bypass_reason: BypassReason
-    closed_loop: bool
-    saturations: int
-    skipped_integrations: int
-    ft_samples: tuple[int, int]
-    ft_age_s: tuple[float, float]
-    ft_biased: tuple[bool, bool]
 
 
 class GripperBridge:
@@ -316,18 +135,25 @@ class GripperBridge:
         self._session_lines = 0
         self._stale_latched = False
         self._fault_reported = False
+        self._stall_fault_reported = False
         self._pending_homing = False
+        self._expect_banner = True  # restart text now would be a boot, not a restart
+        # host stalls and resumption
+        self._lagging = False
+        self._pending_stall_s = 0.0
+        self._last_write_line_t = _NAN
+        self._ramp_t = _NAN
+        self._ramp_from = 0.0
+        # contact seen by F/T or a squeezing stall: motor angle [rad] until the fingers reopen
+        self._contact_angle = _NAN
+        self._stall_since = _NAN
         # latest values
         self._angle = _NAN
         self._rate = _NAN
         self._voltage_cmd = _NAN
         self._force_cmd = _NAN
         self._last_out: ForceLoopOutput | None = None
-        # command
-        self._target = 0.0
-        self._target_stamp = 0.0
-        self._target_timeout = 0.0
-        self._target_source = 0
+        self._gate = GraspCommandGate()
         # F/T (index 0 = finger 1): latest-sample slots, replaced whole without the lock
         self._ft = [_NO_FT, _NO_FT]
         self._ft_samples = [0, 0]
@@ -338,10 +164,11 @@ class GripperBridge:
         self._link_faults = 0
         self._writes = 0
         self._write_failures = 0
-        self._accepted = 0
-        self._rejected: dict[str, int] = {}
-        self._ignored = 0
-        self._clipped = 0
+        self._host_stalls = 0
+        self._last_host_stall_s = 0.0
+        self._max_host_stall_s = 0.0
+        self._catch_up_lines = 0
+        self._resume_ramps = 0
 
     # ------------------------------------------------------------------ parameters
     @property
@@ -377,7 +204,7 @@ class GripperBridge:
             self._controller.reset()
             self._stale_latched = False
             self._fault_reported = False
-            self._clear_target(t)
+            self._gate.clear(t)
             self._pending_homing = self._params.homing.on_activate and not self._homing.homed
 
     def deactivate(self, t: float) -> bool:
@@ -407,7 +234,7 @@ class GripperBridge:
             self._stopped = False
             self._safe_reason = ''
             self._controller.reset()
-            self._clear_target(t)
+            self._gate.clear(t)
             return CommandResult(True, 'armed; target cleared to 0 N')
 
     def stop(self, t: float) -> bool:
@@ -418,7 +245,7 @@ class GripperBridge:
         """
         with self._lock:
             self._stopped = True
-            self._clear_target(t)
+            self._gate.clear(t)
             self._homing.abort('stop requested')
             self._voltage_cmd = self._params.actuator.safe_voltage
             return self._write(self._safe_command)
@@ -433,15 +260,18 @@ class GripperBridge:
             self._controller.reset()
             self._rate = _NAN
             self._last_line_t = _NAN
+            self._last_write_line_t = _NAN
+            self._ramp_t = self._stall_since = _NAN
             self._connect_t = self._activate_t = t
-            self._target_stamp = min(self._target_stamp, t)
+            self._gate.rewind(t)
             for i, slot in enumerate(self._ft):
                 if math.isfinite(slot.stamp):
                     self._ft[i] = slot._replace(stamp=min(slot.stamp, t))
 
     # ------------------------------------------------------------------ link events
     def on_connected(self, t: float, port: str = '') -> None:
-        """The port was (re)opened at ``t`` [s]: new link session, safe voltage written."""
+        """The port was (re)opened at ``t`` [s]: new link session; a newline (ending any
+        fragment in the firmware's buffer) and the safe voltage written in one write."""
         del port
         with self._lock:
             self._connected = True
@@ -456,7 +286,7 @@ class GripperBridge:
             self._fault_reported = False
             self._new_session('link (re)connected')
             self._voltage_cmd = self._params.actuator.safe_voltage
-            self._write(self._safe_command)
+            self._write(CONNECT_FLUSH + self._safe_command)
 
     def on_link_lost(self, t: float, reason: str) -> None:
         """The port failed or was dropped at ``t`` [s]: safe state, disarmed, homing void."""
@@ -468,11 +298,18 @@ class GripperBridge:
             self._enter_safe(f'link lost: {reason}')
             self._new_session(f'link lost: {reason}')
 
-    def check_watchdog(self, t: float) -> WatchdogResult:
+    def check_watchdog(self, t: float,
+                       input_pending: Callable[[], int] | None = None) -> WatchdogResult:
         """Supervise telemetry; call from a timer (≤ 10 ms period) with the current time [s].
 
-        Writes the safe voltage once when the link goes stale; disarms and asks for a
-        reconnection once when it faults.
+        Args:
+            t: Current time on the line clock [s].
+            input_pending: Bytes received at the port but not yet read by the loop (asked only
+                when no line was processed for ``link.stale_after``); None = unknown (0).
+
+        Writes the safe voltage once when no telemetry arrives; disarms and asks for a
+        reconnection once when the link faults. Telemetry waiting at the port is a host stall
+        (`LinkState.LAGGING`): nothing is written unless it lasts ``link.host_stall_limit``.
         """
         # The usual case (fresh telemetry) without the lock: the watchdog runs every few ms
         # on its own thread, and a lock holder descheduled there would delay the reader.
@@ -488,6 +325,12 @@ class GripperBridge:
                 return WatchdogResult(LinkState.INACTIVE, _NAN, False, 'inactive')
             age = self._line_age(t)
             p = self._params.link
+            if age <= p.stale_after:
+                return WatchdogResult(LinkState.OK, age, False, 'ok')
+            pending = input_pending() if input_pending is not None else 0
+            if pending > 0 and self._session_lines > 0:
+                return self._host_lagging(age, pending)
+            self._lagging = False
             if age > p.fault_after:
                 reason = f'no telemetry for {age:.3f} s (fault after {p.fault_after:.3f} s)'
                 reconnect = not self._fault_reported
@@ -495,12 +338,27 @@ class GripperBridge:
                     self._fault_reported = True
                     self._link_faults += 1
                     self._go_stale(reason, disarm=True)
-                return WatchdogResult(LinkState.FAULT, age, reconnect, reason)
-            if age > p.stale_after:
-                reason = f'no telemetry for {age:.3f} s (stale after {p.stale_after:.3f} s)'
-                self._go_stale(reason, disarm=False)
-                return WatchdogResult(LinkState.STALE, age, False, reason)
-            return WatchdogResult(LinkState.OK, age, False, 'ok')
+                return WatchdogResult(LinkState.FAULT, age, reconnect, reason, reconnect)
+            reason = f'no telemetry for {age:.3f} s (stale after {p.stale_after:.3f} s)'
+            self._go_stale(reason, disarm=False)
+            return WatchdogResult(LinkState.STALE, age, False, reason)
+
+    def _host_lagging(self, age: float, pending: int) -> WatchdogResult:
+        """Telemetry waits at the port: the host is behind, not the device (lock held)."""
+        self._lagging = True
+        self._pending_stall_s = max(self._pending_stall_s, age)
+        limit = self._params.link.host_stall_limit
+        if age <= limit:
+            return WatchdogResult(LinkState.LAGGING, age, False,
+                                  f'{pending} bytes of telemetry wait unprocessed for '
+                                  f'{age:.3f} s (host busy; the last command stays applied)')
+        reason = (f'telemetry waited unprocessed for {age:.3f} s (host_stall_limit '
+                  f'{limit:.3f} s): the loop is stalled')
+        disarmed = not self._stall_fault_reported
+        if disarmed:
+            self._stall_fault_reported = True
+            self._go_stale(reason, disarm=True)
+        return WatchdogResult(LinkState.LAGGING, age, False, reason, disarmed)
 
     # ------------------------------------------------------------------ inputs
     def set_grasp_force(self, force: float, t: float, *, stamp: float = 0.0,
@@ -518,34 +376,11 @@ class GripperBridge:
             Accepted, or the reason for rejection (rejected values are never used).
         """
         with self._lock:
-            a = self._params.actuator
-            bound = a.voltage_limit * a.newton_per_volt
-            if not math.isfinite(force):
-                return self._reject('non_finite', f'force {force!r} is not finite')
-            if abs(force) > bound:
-                return self._reject('out_of_range', f'|force| {abs(force):.3g} N exceeds the '
-                                    f'actuator range {bound:.1f} N')
-            if not (math.isfinite(timeout) and timeout >= 0.0):
-                return self._reject('bad_timeout', f'timeout {timeout!r} s is not finite >= 0')
-            if not math.isfinite(stamp):
-                return self._reject('bad_stamp', f'stamp {stamp!r} is not finite')
-            if stamp > t + MAX_COMMAND_CLOCK_SKEW_S:
-                return self._reject('future_stamp', f'stamp {stamp:.3f} s is {stamp - t:.3f} s '
-                                    f'in the future (clock mismatch?)')
-            if not (self._active and self._armed):
-                self._ignored += 1
-                return CommandResult(False, 'not armed: command ignored (re-arm first)')
-            fc = self._params.force_control
-            if not -fc.max_open_force <= force <= fc.max_grasp_force:
-                self._clipped += 1
-            self._target = force
-            self._target_stamp = stamp if stamp != 0.0 else t
-            self._target_timeout = timeout if timeout > 0.0 else \
-                self._params.command.default_timeout
-            self._target_source = source
-            self._stopped = False
-            self._accepted += 1
-            return CommandResult(True, 'accepted')
+            result = self._gate.submit(force, t, stamp=stamp, timeout=timeout, source=source,
+                                       armed=self._active and self._armed, params=self._params)
+            if result.accepted:
+                self._stopped = False
+            return result
 
     def on_ft_sample(self, finger: int, t: float, fz: float, biased: bool) -> None:
         """Store the latest bias-removed normal force of one finger.
@@ -568,6 +403,20 @@ class GripperBridge:
         self._ft[i] = _FtSlot(fz, t, biased)
         self._ft_samples[i] += 1
 
+    def on_ft_wrench(self, finger: int, t: float, wrench: Sequence[float] | None) -> None:
+        """Store the latest wrench of one finger as the host's F/T path delivers it.
+
+        Args:
+            finger: 1 or 2.
+            t: Acquisition stamp [s].
+            wrench: Bias-removed ``(Fx, Fy, Fz, Tx, Ty, Tz)`` [N, N·m] in the sensor frame,
+                or None while that sensor has no bias (the loop then runs open).
+        """
+        if wrench is None:
+            self.on_ft_sample(finger, t, _NAN, False)
+        else:
+            self.on_ft_sample(finger, t, float(wrench[2]), True)
+
     def start_homing(self, t: float) -> CommandResult:
         """Start homing at ``t`` [s] unless a precondition fails (see `homing_refusal`)."""
         with self._lock:
@@ -579,6 +428,20 @@ class GripperBridge:
             self._homing.start(t)
             return CommandResult(True, 'homing started')
 
+    def adopt_homing(self, t: float, result: HomingResult) -> CommandResult:
+        """Take known limits at ``t`` [s] instead of driving against the stops.
+
+        Refused for the same reasons as `start_homing`; the motor is not moved. A simulator
+        that knows its limits homes this way.
+        """
+        with self._lock:
+            refusal = self._homing_refusal(t)
+            if refusal is not None:
+                return CommandResult(False, refusal)
+            self._controller.reset()
+            self._homing.adopt(result)
+            return CommandResult(True, self._homing.message)
+
     # ------------------------------------------------------------------ the 500 Hz path
     def on_line(self, line: bytes, overflow: bool, t: float) -> LineResult:
         """Process one device line stamped at acquisition time ``t`` [s] and write a command.
@@ -586,76 +449,235 @@ class GripperBridge:
         Signature matches `transport.SerialLink`'s ``on_line`` callback.
         """
         with self._lock:
-            parsed = self._parser.parse(line, overflow)
-            if parsed.kind != LineKind.TELEMETRY:
-                if parsed.restart and self._session_lines > 0:
-                    self._firmware_restarts += 1
-                    self._session_lines = 0
-                    self._enter_safe('firmware restart detected')
-                    self._new_session('firmware restart detected')
-                    self._voltage_cmd = self._params.actuator.safe_voltage
-                    written = self._write(self._safe_command)
-                    return LineResult(t, parsed.kind, self._safe_command, written, None, None,
-                                      'firmware_restart')
-                return LineResult(t, parsed.kind, None, False, None, None, '')
-            return self._on_telemetry(parsed.angle_rad, t)
+            return self._handle(self._parser.parse(line, overflow), t, True)
 
-    def _on_telemetry(self, angle: float, t: float) -> LineResult:
+    def on_lines(self, lines: Sequence[tuple[bytes, bool]], t: float,
+                 period: float = TELEMETRY_PERIOD_S) -> list[LineResult]:
+        """Process the lines of one read (``(line, overflow)`` pairs, oldest first).
+
+        The newest line is stamped ``t`` [s] and each earlier one ``period`` [s] before the
+        next (the firmware prints one line per period; never before the previous line's
+        stamp). Every line updates the parser, observer and status; only the newest telemetry
+        line steps the controller (or homing) and writes a command, so a backlog left by a
+        host stall produces no burst of commands. A backlog longer than ``link.stale_after``
+        is reported as a host stall on that line, unless the watchdog had found the port
+        empty meanwhile (then the device was late and the link went stale).
+        """
+        n = len(lines)
+        if n == 1:
+            return [self.on_line(lines[0][0], lines[0][1], t)]
+        with self._lock:
+            parsed = [self._parser.parse(line, overflow) for line, overflow in lines]
+            newest = -1
+            for i, item in enumerate(parsed):
+                if item.kind == LineKind.TELEMETRY:
+                    newest = i
+            backlog = (n - 1) * period
+            # A backlog after the watchdog found the port empty (stale) is a burst from a
+            # device that was late, not a host stall: the stale event told that story.
+            if backlog > self._params.link.stale_after and self._session_lines > 0 and \
+                    not self._stale_latched:
+                self._pending_stall_s = max(self._pending_stall_s, backlog)
+            floor = self._last_line_t if math.isfinite(self._last_line_t) else -math.inf
+            out = []
+            for i, item in enumerate(parsed):
+                stamp = max(t - (n - 1 - i) * period, floor)
+                out.append(self._handle(item, stamp, i == newest))
+            return out
+
+    def _handle(self, parsed: ParsedLine, t: float, step: bool) -> LineResult:
+        """One parsed line (lock held); ``step``: a telemetry line may step and write."""
+        if parsed.kind == LineKind.TELEMETRY:
+            return self._on_telemetry(parsed.angle_rad, t, step)
+        if parsed.restart and not self._expect_banner:
+            # Restart text after telemetry (on this connection or an earlier one): the
+            # firmware was reset. Text that follows before telemetry is the same boot.
+            self._expect_banner = True
+            self._firmware_restarts += 1
+            self._session_lines = 0
+            self._enter_safe('firmware restart detected')
+            self._new_session('firmware restart detected')
+            self._voltage_cmd = self._params.actuator.safe_voltage
+            written = self._write(self._safe_command)
+            return LineResult(t, parsed.kind, self._safe_command, written, None, None,
+                              'firmware_restart')
+        return LineResult(t, parsed.kind, None, False, None, None, '')
+
+    def _on_telemetry(self, angle: float, t: float, step: bool = True) -> LineResult:
         params = self._params
         a = params.actuator
         self._session_lines += 1
         self._last_line_t = t
         self._stale_latched = False
         self._fault_reported = False
+        self._stall_fault_reported = False
+        self._expect_banner = False
         self._angle = angle
         self._rate = self._observer.update(t, angle * a.opening_per_rad).rate
         if not self._active:
             return LineResult(t, LineKind.TELEMETRY, None, False, self._snapshot(t), None, '')
+        ft = self._ft_pair()  # one consistent pair for this step
+        homing = self._homing
+        homing_active = homing.active
+        if not homing_active:
+            self._track_contact(angle, t, ft)
+        if not step:
+            self._catch_up_lines += 1
+            return LineResult(t, LineKind.TELEMETRY, None, False, self._snapshot(t, ft), None,
+                              '')
+        event = ''
+        if self._pending_stall_s > 0.0:
+            stall = self._pending_stall_s
+            self._pending_stall_s = 0.0
+            self._host_stalls += 1
+            self._last_host_stall_s = stall
+            self._max_host_stall_s = max(self._max_host_stall_s, stall)
+            event = 'host_stall'
+        self._lagging = False
 
         if self._pending_homing:
             self._pending_homing = False
             refusal = self._homing_refusal(t)
             if refusal is None:
                 self._controller.reset()
-                self._homing.start(t)
+                homing.start(t)
             else:
-                self._homing.message = f'automatic homing refused: {refusal}'
+                homing.message = f'automatic homing refused: {refusal}'
+            homing_active = homing.active
 
-        event = ''
         out: ForceLoopOutput | None = None
-        ft = self._ft_pair()  # one consistent pair for this step
-        if self._homing.active:
-            step = self._homing.step(t, angle)
-            if step.voltage_v is not None and self._armed:
-                command = format_voltage_command(step.voltage_v, a.voltage_limit)
+        force_cmd = _NAN
+        if homing_active:
+            step_h = homing.step(t, angle)
+            if step_h.voltage_v is not None and self._armed:
+                command = format_voltage_command(step_h.voltage_v, a.voltage_limit)
                 voltage = float(command[1:-1])
             else:
                 command, voltage = self._safe_command, a.safe_voltage
-            if step.finished:
-                event = 'homing_done' if self._homing.homed else 'homing_failed'
+            if step_h.finished:
+                event = 'homing_done' if homing.homed else 'homing_failed'
             self._force_cmd = voltage_to_force(voltage, a.newton_per_volt)
+            self._ramp_t = _NAN
         else:
-            out = self._controller.step(self._loop_input(t, ft))
+            safe = self._safe()
+            ramping = self._resume_ramp(t, safe)
+            out = self._controller.step(self._loop_input(t, ft, ramping))
             self._last_out = out
             command, voltage = self._safe_command, a.safe_voltage
-            if not self._safe():
+            force_cmd = out.force_cmd
+            if not safe:
+                if ramping:
+                    force_cmd = self._ramped(force_cmd, t)
                 fc = params.force_control
                 try:
                     command, voltage = encode_force_command(
-                        out.force_cmd, newton_per_volt=a.newton_per_volt,
+                        force_cmd, newton_per_volt=a.newton_per_volt,
                         max_close_force_n=fc.max_command_force,
                         max_open_force_n=fc.max_open_force, voltage_limit_v=a.voltage_limit)
                 except CommandError as exc:  # cannot happen with finite inputs; stay safe
                     self._enter_safe(f'command encoding failed: {exc}')
-            self._force_cmd = out.force_cmd
+            self._force_cmd = force_cmd
         self._voltage_cmd = voltage
         written = self._write(command)
+        self._last_write_line_t = t
         # Everything below only reports: it runs after the command left.
         motor = None if out is None else MotorCommandRecord(
-            t, out.force_target, out.force_cmd, voltage, out.measured_force, out.error,
+            t, out.force_target, force_cmd, voltage, out.measured_force, out.error,
             out.integral, out.gain_scale, out.closed_loop, int(out.bypass_reason))
         return LineResult(t, LineKind.TELEMETRY, command, written, self._snapshot(t, ft), motor,
                           event)
+
+    def _resume_ramp(self, t: float, safe: bool) -> bool:
+        """True while the command resumes from the last applied value (lock held).
+
+        Starts when the loop wrote nothing for ``link.stale_after`` (a host stall or a
+        telemetry gap; the watchdog may have written the safe voltage meanwhile).
+        """
+        if safe:
+            self._ramp_t = _NAN
+            return False
+        if t - self._last_write_line_t > self._params.link.stale_after:
+            self._ramp_t = t
+            self._ramp_from = voltage_to_force(self._voltage_cmd,
+                                               self._params.actuator.newton_per_volt)
+            self._resume_ramps += 1
+        return self._ramp_t == self._ramp_t  # not NaN
+
+    def _ramped(self, force_cmd: float, t: float) -> float:
+        """``force_cmd`` [N] limited to ``resume_rate`` from the value applied at the
+        resumption; the ramp ends once the controller's command is within reach."""
+        reach = self._params.link.resume_rate * (t - self._ramp_t)
+        low, high = self._ramp_from - reach, self._ramp_from + reach
+        if force_cmd < low:
+            return low
+        if force_cmd > high:
+            return high
+        self._ramp_t = _NAN
+        return force_cmd
+
+    def _track_contact(self, angle: float, t: float, ft: tuple[_FtSlot, _FtSlot]) -> None:
+        """Remember where the pads last touched something (lock held; see `bias_refusal`).
+
+        Contact: a finger's biased, fresh F/T measures at least ``contact_threshold`` of
+        normal force, or the fingers rest (``|opening rate| < end_stop_speed``) for
+        `STALL_CONFIRM_S` while the command squeezes with at least ``contact_threshold``.
+        Released once the motor angle is `CONTACT_RELEASE_MARGIN_M` of opening beyond it.
+        """
+        p = self._params
+        fc = p.force_control
+        threshold = fc.contact_threshold
+        loaded = False
+        for slot in ft:
+            if slot.biased and t - slot.stamp <= fc.ft_stale_after and -slot.fz >= threshold:
+                loaded = True
+        squeezing = -p.actuator.newton_per_volt * self._voltage_cmd >= threshold
+        if squeezing and abs(self._rate) < fc.end_stop_speed:
+            if self._stall_since != self._stall_since:  # NaN: not resting yet
+                self._stall_since = t
+            elif t - self._stall_since >= STALL_CONFIRM_S:
+                loaded = True
+        else:
+            self._stall_since = _NAN
+        if loaded:
+            self._contact_angle = angle
+        elif angle > self._contact_angle + CONTACT_RELEASE_MARGIN_M / p.actuator.opening_per_rad:
+            self._contact_angle = _NAN
+
+    def bias_refusal(self, t: float) -> str | None:
+        """Why an F/T bias must not be taken now at ``t`` [s], or None when the pads are free.
+
+        A bias taken while the pads are loaded absorbs the load: every later force reads low
+        by that much and the loop squeezes harder (issue 16: 10 N commanded gave 18.1 N). The
+        pads may be loaded while homing runs, while a squeezing target (> 0 N) is active,
+        while the applied command squeezes with at least ``contact_threshold``, while a
+        finger's biased F/T (no older than ``ft_fault_after``) measures that much normal
+        force, or until the fingers reopened by `CONTACT_RELEASE_MARGIN_M` after they last
+        touched something (F/T contact or a squeezing stall).
+        """
+        with self._lock:
+            fc = self._params.force_control
+            threshold = fc.contact_threshold
+            reasons = []
+            if self._homing.active:
+                reasons.append('homing is running')
+            target = self._gate.target.force
+            if self._active and self._armed and not self._stopped and target > 0.0:
+                reasons.append(f'a squeezing grasp-force target of {target:.1f} N is active')
+            applied = voltage_to_force(self._voltage_cmd, self._params.actuator.newton_per_volt)
+            if applied >= threshold:
+                reasons.append(f'the motor is commanded to squeeze with {applied:.1f} N')
+            for finger, slot in enumerate(self._ft_pair(), start=1):
+                if slot.biased and t - slot.stamp <= fc.ft_fault_after and -slot.fz >= threshold:
+                    reasons.append(f'finger {finger} F/T measures {-slot.fz:.1f} N of normal '
+                                   'force')
+            if self._contact_angle == self._contact_angle:  # not NaN
+                reasons.append(f'the fingers touched something (at motor angle '
+                               f'{self._contact_angle:.4f} rad) and have not opened '
+                               f'{CONTACT_RELEASE_MARGIN_M * 1e3:.0f} mm since')
+            if not reasons:
+                return None
+            return ('the pads may be loaded: ' + '; '.join(reasons)
+                    + ' (open the gripper with a negative grasp force, then bias)')
 
     # ------------------------------------------------------------------ outputs
     def status(self, t: float) -> GripperStatusSnapshot:
@@ -669,10 +691,13 @@ class GripperBridge:
             c = self._parser.counters()
             out = self._last_out
             ft = self._ft_pair()
+            gate = self._gate
             if not self._connected:
                 state = LinkState.DOWN
             elif not self._active:
                 state = LinkState.INACTIVE
+            elif self._lagging:
+                state = LinkState.LAGGING
             elif self._line_age(t) > self._params.link.fault_after:
                 state = LinkState.FAULT
             elif self._line_age(t) > self._params.link.stale_after:
@@ -688,11 +713,10 @@ class GripperBridge:
                 firmware_restarts=self._firmware_restarts, reconnects=self._reconnects,
                 link_losses=self._link_losses, stale_events=self._stale_events,
                 link_faults=self._link_faults, writes=self._writes,
-                write_failures=self._write_failures, commands_accepted=self._accepted,
-                commands_rejected=sum(self._rejected.values()),
-                rejected_by_reason=tuple(sorted(self._rejected.items())),
-                commands_ignored=self._ignored, targets_clipped=self._clipped,
-                command_age_s=t - self._target_stamp, command_source=self._target_source,
+                write_failures=self._write_failures, commands_accepted=gate.accepted,
+                commands_rejected=gate.rejected, rejected_by_reason=gate.rejected_by_reason(),
+                commands_ignored=gate.ignored, targets_clipped=gate.clipped,
+                command_age_s=t - gate.target.stamp, command_source=gate.target.source,
                 homed=self._homing.homed, homing_active=self._homing.active,
                 homing_message=self._homing.message,
                 bypass_reason=out.bypass_reason if out else BypassReason.SAFE_STATE,
@@ -701,7 +725,10 @@ class GripperBridge:
                 skipped_integrations=self._controller.skipped_integrations,
                 ft_samples=(self._ft_samples[0], self._ft_samples[1]),
                 ft_age_s=(t - ft[0].stamp, t - ft[1].stamp),
-                ft_biased=(ft[0].biased, ft[1].biased))
+                ft_biased=(ft[0].biased, ft[1].biased), host_stalls=self._host_stalls,
+                last_host_stall_s=self._last_host_stall_s,
+                max_host_stall_s=self._max_host_stall_s, catch_up_lines=self._catch_up_lines,
+                resume_ramps=self._resume_ramps, contact_angle=self._contact_angle)
 
     @property
     def homing(self) -> Homing:
@@ -717,16 +744,6 @@ class GripperBridge:
             self._write_failures += 1
         return ok
 
-    def _reject(self, key: str, message: str) -> CommandResult:
-        self._rejected[key] = self._rejected.get(key, 0) + 1
-        return CommandResult(False, message)
-
-    def _clear_target(self, t: float) -> None:
-        self._target = 0.0
-        self._target_stamp = t
-        self._target_timeout = 0.0
-        self._target_source = 0
-
     def _enter_safe(self, reason: str) -> None:
         self._armed = False
         self._safe_reason = reason
@@ -737,6 +754,11 @@ class GripperBridge:
         self._observer.reset()
         self._controller.reset()
         self._rate = _NAN
+        # Angles of a new session may count from a new zero (firmware restart).
+        self._contact_angle = self._stall_since = self._ramp_t = _NAN
+        self._last_write_line_t = _NAN
+        self._lagging = False
+        self._pending_stall_s = 0.0
 
     def _go_stale(self, reason: str, disarm: bool) -> None:
         """Write the safe voltage once when telemetry stops.
@@ -767,8 +789,9 @@ class GripperBridge:
         return t - ref if math.isfinite(ref) else math.inf
 
     def _link_ok(self, t: float) -> bool:
+        """Telemetry arrives: recent lines, or lines waiting at the port (host stall)."""
         return self._connected and self._session_lines > 0 and \
-            self._line_age(t) <= self._params.link.stale_after
+            (self._lagging or self._line_age(t) <= self._params.link.stale_after)
 
     def _ft_pair(self) -> tuple[_FtSlot, _FtSlot]:
         """Both fingers' latest slots, each read once (writers replace slots, never edit)."""
@@ -790,12 +813,14 @@ class GripperBridge:
             link_ok=self._link_ok(t), armed=self._armed and self._active,
             busy=self._homing.active, ft_checked=biased and fresh and math.isfinite(force),
             grasp_force=force, contact_threshold=self._params.force_control.contact_threshold,
-            target_force=0.0 if self._stopped else self._target)
+            target_force=0.0 if self._stopped else self._gate.target.force)
 
-    def _loop_input(self, t: float, ft: tuple[_FtSlot, _FtSlot]) -> ForceLoopInput:
+    def _loop_input(self, t: float, ft: tuple[_FtSlot, _FtSlot],
+                    hold_integral: bool = False) -> ForceLoopInput:
         result = self._homing.result
         k = self._params.actuator.opening_per_rad
         measurement = self._params.force_control.measurement
+        target = self._gate.target
         ft1, ft2 = ft
         if measurement == 'finger_1':
             biased = ft1.biased
@@ -809,23 +834,23 @@ class GripperBridge:
         else:
             opening = stroke = _NAN
         return ForceLoopInput(
-            t=t, target=self._target, target_stamp=self._target_stamp,
-            target_timeout=self._target_timeout, fz_1=ft1.fz, fz_2=ft2.fz,
+            t=t, target=target.force, target_stamp=target.stamp,
+            target_timeout=target.timeout, fz_1=ft1.fz, fz_2=ft2.fz,
             ft_stamp_1=ft1.stamp, ft_stamp_2=ft2.stamp, ft_biased=biased,
             homed=result is not None, opening=opening,
             opening_rate=self._rate if result is not None else _NAN, stroke=stroke,
-            safe_state=self._safe())
+            safe_state=self._safe(), hold_integral=hold_integral)
 
     def _snapshot(self, t: float, ft: tuple[_FtSlot, _FtSlot] | None = None
                   ) -> GripperStatusSnapshot:
-        c = self._parser.counters()
+        parser = self._parser
         result = self._homing.result
         k = self._params.actuator.opening_per_rad
         force, biased, fresh = self._ft_state(t, ft)
         out = self._last_out
         homed = result is not None
         return GripperStatusSnapshot(
-            stamp=t, line_count=c.good, bad_line_count=c.bad + c.unknown,
+            stamp=t, line_count=parser.good, bad_line_count=parser.not_telemetry,
             reconnect_count=self._reconnects, motor_angle=self._angle,
             opening=(self._angle - result.theta_closed) * k if result is not None else _NAN,
             opening_rate=self._rate if homed else _NAN, voltage_cmd=self._voltage_cmd,
@@ -836,183 +861,3 @@ class GripperBridge:
             in_contact=abs(force) >= self._params.force_control.contact_threshold,
             command_expired=out.command_expired if out is not None else False,
             armed=self._armed and self._active, safe_state=self._safe())
-
-
-LineResultCallback = Callable[[LineResult], None]
-EventCallback = Callable[[float, str, str], None]
-#: ``(t, result)`` after each watchdog check, on the watchdog thread.
-WatchdogCallback = Callable[[float, WatchdogResult], None]
-
-
-class GripperDriverCore:
-    """A `GripperBridge` wired to a `SerialLink`: what the lifecycle node wraps.
-
-    Lifecycle mapping: configure → `configure` (opens the port; `LinkError` names it);
-    activate → `activate` then `start_watchdog` (or a ≥ 100 Hz timer calling `watchdog`);
-    deactivate → `deactivate` (safe voltage first); cleanup → `cleanup`; shutdown / process
-    exit → `shutdown`.
-
-    `start_watchdog` supervises the link from a thread of its own rather than an executor
-    timer: it does not depend on (or add load to) the executor, so a starved or busy executor
-    can neither delay link-loss detection nor, through the GIL, the 500 Hz reader.
-
-    Args:
-        port: Port path or pyserial URL.
-        params: Bridge parameters.
-        clock: Node clock [s]; stamps every line and event.
-        baudrate: Baud rate [Bd].
-        reconnect: Back-off parameters.
-        on_result: Called on the reader thread after each line was handled and its command
-            written (publish status/motor command here; must not block).
-        on_event: ``(t, kind, message)`` for logging/diagnostics; kinds: ``'connected'``,
-            ``'lost'``, ``'error'``, ``'firmware_restart'``, ``'homing_done'``,
-            ``'homing_failed'``, ``'stale'``, ``'fault'``.
-        opener: Stream factory (tests inject fakes).
-        read_timeout_s: Serial read timeout [s].
-        thread_setup: Called first on the serial reader thread (`realtime.ThreadTuning.apply`).
-    """
-
-    def __init__(self, port: str, params: BridgeParams, *, clock: Clock,
-                 baudrate: int = 115200, reconnect: ReconnectParams = ReconnectParams(),
-                 on_result: LineResultCallback | None = None,
-                 on_event: EventCallback | None = None,
-                 opener: Callable[..., ByteStream] = open_stream,
-                 read_timeout_s: float = 0.02,
-                 thread_setup: Callable[[], object] | None = None) -> None:
-        self._clock = clock
-        self._on_result = on_result
-        self._on_event = on_event
-        self._thread_setup = thread_setup
-        self._last_state = LinkState.INACTIVE
-        self._watchdog_stop = threading.Event()
-        self._watchdog_thread: threading.Thread | None = None
-        self.watchdog_errors = 0  #: exceptions raised in a watchdog tick (a bug; reported)
-        self.link = SerialLink(port, clock=clock, on_line=self._handle_line,
-                               on_connected=self._handle_connected, on_lost=self._handle_lost,
-                               on_error=self._handle_error, baudrate=baudrate,
-                               read_timeout_s=read_timeout_s, reconnect=reconnect,
-                               opener=opener, thread_setup=thread_setup)
-        self.bridge = GripperBridge(params, writer=self.link.write)
-
-    @property
-    def port(self) -> str:
-        """Port path or URL."""
-        return self.link.url
-
-    def configure(self) -> None:
-        """Open the port and write the safe voltage.
-
-        Raises:
-            LinkError: The port cannot be opened (message names it).
-        """
-        self.link.open()
-
-    def activate(self, t: float) -> None:
-        """Arm and start the reader thread (the 500 Hz loop).
-
-        Raises:
-            LinkError: `configure` never succeeded.
-        """
-        self.bridge.activate(t)
-        try:
-            self.link.start()
-        except LinkError:
-            self.bridge.deactivate(t)
-            raise
-
-    def watchdog(self, t: float) -> WatchdogResult:
-        """Supervise the link at time ``t`` [s]; reconnects on a fault."""
-        result = self.bridge.check_watchdog(t)
-        if result.state != self._last_state and result.state in (LinkState.STALE,
-                                                                 LinkState.FAULT):
-            self._emit(t, 'stale' if result.state == LinkState.STALE else 'fault',
-                       f'{self.port}: {result.reason}')
-        self._last_state = result.state
-        if result.reconnect:
-            self.link.request_reconnect(result.reason)
-        return result
-
-    def start_watchdog(self, period_s: float, on_tick: WatchdogCallback | None = None) -> None:
-        """Call `watchdog` every ``period_s`` [s] on a thread of its own until deactivation.
-
-        The period is waited on the monotonic clock; each check uses ``clock()`` (the node
-        clock), like a steady-clock timer would. ``on_tick(t, result)`` runs after each check
-        on that thread (publish a degraded status there; must not block).
-        """
-        if self._watchdog_thread is not None and self._watchdog_thread.is_alive():
-            return
-        self._watchdog_stop.clear()
-        self._watchdog_thread = threading.Thread(
-            target=self._watchdog_loop, args=(period_s, on_tick),
-            name=f'link-watchdog {self.port}', daemon=True)
-        self._watchdog_thread.start()
-
-    def stop_watchdog(self, timeout_s: float = 1.0) -> None:
-        """Stop the watchdog thread (idempotent)."""
-        self._watchdog_stop.set()
-        thread = self._watchdog_thread
-        if thread is not None and thread is not threading.current_thread():
-            thread.join(timeout_s)
-        self._watchdog_thread = None
-
-    def deactivate(self, t: float) -> bool:
-        """Write the safe voltage, then stop the reader and watchdog; True if written."""
-        written = self.bridge.deactivate(t)
-        self.link.stop()
-        self.stop_watchdog()
-        return written
-
-    def cleanup(self, t: float) -> None:
-        """Safe voltage (if still possible), stop and close the port."""
-        self.bridge.deactivate(t)
-        self.stop_watchdog()
-        self.link.close()
-
-    def shutdown(self, t: float) -> None:
-        """Same as `cleanup`; safe to call more than once."""
-        self.cleanup(t)
-
-    def stats(self) -> LinkStats:
-        """Link counters."""
-        return self.link.stats()
-
-    # ------------------------------------------------------------------ callbacks
-    def _watchdog_loop(self, period_s: float, on_tick: WatchdogCallback | None) -> None:
-        if self._thread_setup is not None:
-            try:
-                self._thread_setup()
-            except Exception as exc:  # noqa: BLE001 - tuning is optional
-                self._emit(self._clock(), 'error', f'{self.port}: watchdog thread setup: {exc}')
-        stop = self._watchdog_stop
-        while not stop.wait(period_s):
-            t = self._clock()
-            try:
-                result = self.watchdog(t)
-                if on_tick is not None:
-                    on_tick(t, result)
-            except Exception as exc:  # noqa: BLE001 - supervision must keep running
-                self.watchdog_errors += 1
-                self._emit(t, 'error', f'{self.port}: watchdog tick raised '
-                           f'{type(exc).__name__}: {exc}')
-
-    def _emit(self, t: float, kind: str, message: str) -> None:
-        if self._on_event is not None:
-            self._on_event(t, kind, message)
-
-    def _handle_line(self, line: bytes, overflow: bool, t: float) -> None:
-        result = self.bridge.on_line(line, overflow, t)
-        if result.event:
-            self._emit(t, result.event, f'{self.port}: {result.event.replace("_", " ")}')
-        if self._on_result is not None:
-            self._on_result(result)
-
-    def _handle_connected(self, t: float, port: str) -> None:
-        self.bridge.on_connected(t, port)
-        self._emit(t, 'connected', f'{port}: connected')
-
-    def _handle_lost(self, t: float, reason: str) -> None:
-        self.bridge.on_link_lost(t, reason)
-        self._emit(t, 'lost', reason)
-
-    def _handle_error(self, t: float, message: str) -> None:
-        self._emit(t, 'error', message)

@@ -1,15 +1,33 @@
 # SPDX-License-Identifier: Apache-2.0
 """Gripper firmware emulator speaking the real serial protocol (for tests and demos).
 
-Plays the ESP32/SimpleFOC firmware of hardware_protocols §2 byte for byte:
+Plays the ESP32/SimpleFOC firmware of hardware_protocols §2 byte for byte, including what the
+published firmware really does where it differs from first assumptions (§8):
 
-* every 2 ms one shaft-angle line with four decimals and ``\\r\\n`` (multi-turn, relative to
-  the power-up position, quantised to the 4096-count encoder);
-* host lines are collected up to ``\\n``; more than 20 characters without a newline →
-  ``Too long in read`` and the buffer is dropped; a line starting with ``T`` sets the q-axis
-  voltage with C ``atof`` semantics (non-numeric text → **0 V**); other lines are ignored; the
-  last value is applied forever (no watchdog);
-* ``Voltage control`` and SimpleFOC-style init text at (re)start, with the angle zeroed.
+* **Telemetry**: one shaft-angle line with four decimals and ``\\r\\n`` per period
+  (multi-turn, relative to the power-up position, quantised to the 4096-count encoder). The
+  period is timed inside the FOC loop, so a line is late by up to one loop iteration, never
+  early: each period lasts ``period`` plus a uniform ``[0, period_jitter]`` (the jitter amount
+  is a model parameter, not a measured figure).
+* **Command buffer**: host bytes are appended until ``\\n`` and the whole buffer is acted on, so
+  a fragment merges with the next command (``T-2.`` then ``T0.00\\n`` applies −2 V). When exactly
+  20 characters have arrived without a newline the firmware prints ``Too long`` and starts a
+  new buffer, but the old content stays behind: a bare ``\\n`` next re-runs it (any other byte
+  starts the new buffer). A line starting with ``T`` sets the q-axis voltage with C ``atof``
+  semantics (non-numeric text → **0 V**), clipped to ``voltage_limit`` the way SimpleFOC's
+  ``_constrain`` clips (``Tinf`` → the limit, ``Tnan`` stays NaN: **neither is rejected**;
+  NaN drives this model with no voltage, the real PWM is undefined). Other lines are ignored.
+  The last value is applied forever (no watchdog). `FirmwareEmulator.malformed_commands`
+  counts executed ``T`` lines that were not in the host's fixed ``T%.2f`` format (fragments,
+  stale buffers, text) and ``nonfinite_commands`` the NaN/inf ones, so tests catch a host that
+  leaves fragments or sends non-finite values.
+* **Reset**: after a (re)start the firmware is **silent for about 5.7 s** (``boot_time``)
+  while ``initFOC`` aligns the rotor, which moves the fingers by about ±5 mm
+  (``align_amplitude``); then it prints only ``Voltage control`` and streams angles counted
+  from the power-up position, so **the first angle is not 0** (the rotor ends
+  ``align_end_offset`` away). Bytes the host writes meanwhile wait in the USB receive buffer
+  (``RX_BUFFER_BYTES``, excess dropped) and are parsed after the boot. At construction the
+  firmware has just finished booting (``boot=True`` prints ``Voltage control`` first).
 
 Plant (quasi-static, motor inertia neglected; one coordinate, the opening ``x`` [m])::
 
@@ -20,11 +38,12 @@ Plant (quasi-static, motor inertia neglected; one coordinate, the opening ``x`` 
 with the closed stop as a stiff contact at ``x = 0`` (pads touching), an optional object of
 width ``w`` and stiffness ``k``, and a hard open stop at ``stroke``. Stall force is exactly
 ``k_FV·|V|`` minus friction; the grasp force on the pads is the contact force. Integrated with
-implicit Euler (stable for any stiffness).
+implicit Euler (stable for any stiffness). The alignment motion is kinematic (the opening
+follows the alignment profile, clamped to ``[0, stroke]``).
 
 Three ways to use it:
 
-* `FirmwareEmulator`: pure, time-stepped (``tick`` → one line); fully deterministic.
+* `FirmwareEmulator`: pure, time-stepped (``tick`` → one period); deterministic for a seed.
 * `EmulatedFirmwareStream`: a `transport.ByteStream` over it in simulated time.
 * `PtyFirmwareEmulator`: a pseudo-terminal whose slave path pyserial opens like a real port,
   at 500 Hz real time, with garbage injection, silence, restarts and ``vanish``/``reappear``
@@ -48,22 +67,28 @@ import time
 import tty
 from collections import deque
 from dataclasses import asdict, dataclass
-from typing import Callable, Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
-#: Firmware command buffer length: one more character without ``\\n`` → ``Too long in read``.
+#: Characters without ``\\n`` after which the firmware prints ``Too long`` (exactly this many).
 FIRMWARE_BUFFER_CHARS = 20
+
+#: What the firmware prints when a (re)start has finished (nothing else; §2.3).
+BOOT_LINE = 'Voltage control'
+
+#: Reply of the firmware's command reader to ``FIRMWARE_BUFFER_CHARS`` characters.
+TOO_LONG_REPLY = 'Too long'
+
+#: Host bytes kept while the firmware boots (USB CDC receive buffer; excess dropped).
+RX_BUFFER_BYTES = 256
 
 _ATOF_RE = re.compile(
     r'[ \t\n\v\f\r]*([+-]?(?:(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?'
     r'|inf(?:inity)?|nan))', re.IGNORECASE)
 
-#: What the emulated firmware prints while booting (SimpleFOC-style; last line is the sketch's).
-BOOT_BANNER: tuple[str, ...] = (
-    'MOT: Init', 'MOT: Enable driver.', 'MOT: Align sensor.', 'MOT: sensor_direction==CW',
-    'MOT: PP check: OK!', 'MOT: Zero elec. angle: 2.18', 'MOT: No current sense.',
-    'MOT: Ready.', 'Voltage control')
+#: The host's command format (``T%.2f``); anything else executed is counted as malformed.
+_HOST_COMMAND_RE = re.compile(rb'T-?[0-9]{1,2}\.[0-9]{2}')
 
 
 def atof(text: str) -> float:
@@ -76,7 +101,8 @@ def atof(text: str) -> float:
 
 @dataclass(frozen=True)
 class GripperModelParams:
-    """Motor, transmission and object of the emulated gripper (SI; volts at the link)."""
+    """Motor, transmission, object and firmware timing of the emulated gripper (SI; volts at
+    the link)."""
 
     newton_per_volt: float = 3.9166  #: stall grasp force per volt [N/V]
     opening_per_rad: float = 0.0086751614  #: opening per motor radian [m/rad]
@@ -91,8 +117,12 @@ class GripperModelParams:
     voltage_limit: float = 20.0  #: firmware voltage_limit [V]
     max_phase_voltage: float = 20.0 / math.sqrt(3.0)  #: SVPWM ceiling [V]
     counts_per_rev: int = 4096  #: encoder resolution
-    period: float = 0.002  #: telemetry period [s]
+    period: float = 0.002  #: nominal telemetry period [s]
+    period_jitter: float = 40e-6  #: each period is late by up to this much [s] (model value)
     substeps: int = 4  #: physics steps per telemetry period
+    boot_time: float = 5.7  #: silence after a reset while initFOC aligns the rotor [s]
+    align_amplitude: float = 0.005  #: finger excursion of the alignment [m]
+    align_end_offset: float = 0.0012  #: opening change left by the alignment (to mid-stroke) [m]
 
 
 class GripperPlant:
@@ -123,6 +153,8 @@ class GripperPlant:
     def step(self, dt: float, voltage_v: float) -> None:
         """Advance by ``dt`` [s] with q-axis voltage ``voltage_v`` [V] (positive opens)."""
         p = self.params
+        if math.isnan(voltage_v):
+            voltage_v = 0.0  # a NaN target: undefined PWM on the real board; no drive here
         v_eff = min(max(voltage_v, -p.max_phase_voltage), p.max_phase_voltage)
         drive = p.newton_per_volt * v_eff
         drive = math.copysign(max(0.0, abs(drive) - p.friction), drive)
@@ -140,14 +172,20 @@ class GripperPlant:
         self.rate = (x1 - x0) / dt
         self.opening = x1
 
+    def place(self, opening: float, dt: float) -> None:
+        """Move kinematically to ``opening`` [m] (clamped to the stops) over ``dt`` [s]."""
+        x1 = min(max(opening, 0.0), self.params.stroke)
+        self.rate = (x1 - self.opening) / dt if dt > 0.0 else 0.0
+        self.opening = x1
+
 
 class FirmwareEmulator:
     """Time-stepped firmware: host bytes in, telemetry and debug lines out.
 
     Args:
-        params: Gripper model.
-        seed: Seed of the garbage generator.
-        boot: Print the boot banner before the first line.
+        params: Gripper model and firmware timing.
+        seed: Seed of the garbage and period-jitter generators.
+        boot: Print ``Voltage control`` before the first line (the firmware has just booted).
     """
 
     def __init__(self, params: GripperModelParams = GripperModelParams(), seed: int = 0,
@@ -155,35 +193,59 @@ class FirmwareEmulator:
         self.params = params
         self.plant = GripperPlant(params)
         self.time_s = 0.0
+        self.last_period_s = params.period  #: duration of the newest tick [s]
         self.target_voltage_v = 0.0
         self.output = bytearray()
         self.commands: deque[bytes] = deque(maxlen=10000)
         self.commands_received = 0
-        self.nonfinite_commands = 0
+        self.nonfinite_commands = 0  #: executed T lines whose value was NaN or ±inf
+        self.malformed_commands = 0  #: executed T lines not in the host's T%.2f format
         self.too_long_replies = 0
+        self.stale_reruns = 0  #: bare newlines that re-ran the buffer left by ``Too long``
         self.ignored_lines = 0
         self.lines_sent = 0
         self.restarts = 0
         self._buffer = bytearray()
-        self._zero_opening = self.plant.opening
+        self._stale = b''
+        # The rotor ended the power-up alignment away from where the encoder counted from.
+        self._zero_opening = self.plant.opening - self._align_offset(self.plant.opening)
         self._rng = np.random.default_rng(seed)
+        self._jitter_rng = np.random.default_rng([seed, 1])
         self._silent_until = -math.inf
+        self._boot: tuple[float, float, float] | None = None  # (start, end, opening at reset)
+        self._boot_rx = bytearray()
         if boot:
-            self._print_banner()
+            self._print(BOOT_LINE)
+
+    @property
+    def booting(self) -> bool:
+        """The firmware is in its reset silence (alignment running)."""
+        return self._boot is not None
 
     # ------------------------------------------------------------------ host → firmware
     def receive(self, data: bytes) -> None:
         """Feed bytes written by the host (any split)."""
+        if self._boot is not None:  # the loop does not run yet: bytes wait in the USB buffer
+            room = RX_BUFFER_BYTES - len(self._boot_rx)
+            self._boot_rx += data[:max(0, room)]
+            return
         for byte in data:
             if byte == 0x0A:
-                self._handle(bytes(self._buffer))
+                if not self._buffer and self._stale:
+                    self.stale_reruns += 1
+                    self._handle(self._stale)
+                else:
+                    self._handle(bytes(self._buffer))
                 self._buffer.clear()
+                self._stale = b''
                 continue
+            self._stale = b''
             self._buffer.append(byte)
-            if len(self._buffer) > FIRMWARE_BUFFER_CHARS:
+            if len(self._buffer) == FIRMWARE_BUFFER_CHARS:
+                self._stale = bytes(self._buffer)  # not cleared: a bare newline re-runs it
                 self._buffer.clear()
                 self.too_long_replies += 1
-                self._print('Too long in read')
+                self._print(TOO_LONG_REPLY)
 
     def _handle(self, line: bytes) -> None:
         if not line.startswith(b'T'):
@@ -191,31 +253,60 @@ class FirmwareEmulator:
             return
         self.commands.append(line)
         self.commands_received += 1
+        if _HOST_COMMAND_RE.fullmatch(line) is None:
+            self.malformed_commands += 1
         value = atof(line[1:].decode('latin-1'))
-        if math.isnan(value):
-            # SimpleFOC would propagate NaN into the PWM; the emulator releases instead.
-            self.nonfinite_commands += 1
-            value = 0.0
+        if not math.isfinite(value):
+            self.nonfinite_commands += 1  # accepted, as the firmware does
         limit = self.params.voltage_limit
-        self.target_voltage_v = min(max(value, -limit), limit)
+        # SimpleFOC's _constrain: comparisons with NaN are false, so NaN passes through.
+        self.target_voltage_v = -limit if value < -limit else limit if value > limit else value
 
     # ------------------------------------------------------------------ firmware → host
     def tick(self) -> bytes:
         """Advance one telemetry period; returns (and queues) the bytes printed meanwhile."""
         p = self.params
-        sub = p.period / p.substeps
-        for _ in range(p.substeps):
-            self.plant.step(sub, self.target_voltage_v)
-        self.time_s += p.period
-        if self.time_s >= self._silent_until:
-            self._print(f'{self.angle_rad():.4f}')
-            self.lines_sent += 1
+        period = p.period
+        if p.period_jitter > 0.0:
+            period += float(self._jitter_rng.uniform(0.0, p.period_jitter))
+        self.last_period_s = period
+        self.time_s += period
+        if self._boot is not None:
+            self._boot_step(period)
+        else:
+            sub = period / p.substeps
+            for _ in range(p.substeps):
+                self.plant.step(sub, self.target_voltage_v)
+            if self.time_s >= self._silent_until:
+                self._print(f'{self.angle_rad():.4f}')
+                self.lines_sent += 1
         out = bytes(self.output)
         self.output.clear()
         return out
 
+    def _boot_step(self, period: float) -> None:
+        assert self._boot is not None
+        start, end, x0 = self._boot
+        p = self.params
+        tau = min(1.0, (self.time_s - start) / (end - start)) if end > start else 1.0
+        self.plant.place(x0 + p.align_amplitude * math.sin(2.0 * math.pi * tau)
+                         + self._align_offset(x0) * tau, period)
+        if self.time_s < end:
+            return
+        self._boot = None
+        self.plant.rate = 0.0
+        self._print(BOOT_LINE)
+        pending, self._boot_rx = bytes(self._boot_rx), bytearray()
+        self.receive(pending)
+
+    def _align_offset(self, x0: float) -> float:
+        """Opening change [m] the alignment leaves when it starts at ``x0`` [m] (towards the
+        middle of the stroke, so a stop never hides it)."""
+        offset = self.params.align_end_offset
+        return -offset if x0 > 0.5 * self.params.stroke else offset
+
     def angle_rad(self) -> float:
-        """Encoder-quantised shaft angle relative to the last (re)start [rad]."""
+        """Encoder-quantised shaft angle relative to the last power-up or reset [rad]."""
         p = self.params
         theta = (self.plant.opening - self._zero_opening) / p.opening_per_rad
         count = 2.0 * math.pi / p.counts_per_rev
@@ -247,21 +338,24 @@ class FirmwareEmulator:
         """Stop printing telemetry for ``duration_s`` [s] of emulator time."""
         self._silent_until = self.time_s + duration_s
 
-    def restart(self, silence_s: float = 0.0) -> None:
-        """Firmware reset: target 0 V, angle re-zeroed, boot banner, optional silence [s]."""
+    def restart(self, silence_s: float | None = None) -> None:
+        """Firmware reset: target 0 V, command buffer lost, silent boot with the alignment
+        motion, then ``Voltage control`` and angles counted from the reset position.
+
+        Args:
+            silence_s: Boot silence [s]; None = ``params.boot_time`` (5.7 s like the real one).
+        """
         self.restarts += 1
         self.target_voltage_v = 0.0
         self._buffer.clear()
+        self._stale = b''
+        self._boot_rx.clear()
         self._zero_opening = self.plant.opening
-        self._silent_until = self.time_s + silence_s
-        self._print_banner()
+        duration = self.params.boot_time if silence_s is None else silence_s
+        self._boot = (self.time_s, self.time_s + max(0.0, duration), self.plant.opening)
 
     def _print(self, text: str) -> None:
         self.output += text.encode('ascii') + b'\r\n'
-
-    def _print_banner(self) -> None:
-        for text in BOOT_BANNER:
-            self._print(text)
 
 
 class EmulatedFirmwareStream:
@@ -326,6 +420,8 @@ class PtyFirmwareEmulator:
         self.link_path = link_path
         self.lock = threading.Lock()
         self.late_ticks = 0
+        self.max_send_gap_s = 0.0  #: longest wall-clock interval between two sends [s]
+        self.long_gaps = 0  #: sends more than 10 periods after the previous one (link gaps)
         self.dropped_writes = 0
         self.vanished = 0
         self._scale = realtime_scale
@@ -363,11 +459,12 @@ class PtyFirmwareEmulator:
         self.vanished += 1
         self.stop()
 
-    def reappear(self, reboot: bool = True) -> str:
-        """The device re-enumerates under the same symlink (new pty); optional reboot."""
+    def reappear(self, reboot: bool = True, boot_s: float | None = None) -> str:
+        """The device re-enumerates under the same symlink (new pty); optional reboot with
+        ``boot_s`` [s] of boot silence (None = the model's ``boot_time``, 5.7 s)."""
         if reboot:
             with self.lock:
-                self.emulator.restart()
+                self.emulator.restart(boot_s)
         return self.start()
 
     def inject(self, data: bytes | str) -> None:
@@ -375,8 +472,9 @@ class PtyFirmwareEmulator:
         with self.lock:
             self.emulator.inject(data)
 
-    def restart(self, silence_s: float = 0.2) -> None:
-        """Firmware restart with ``silence_s`` [s] of boot time (thread-safe)."""
+    def restart(self, silence_s: float | None = None) -> None:
+        """Firmware reset with ``silence_s`` [s] of boot silence, None = the model's
+        ``boot_time`` (5.7 s) (thread-safe)."""
         with self.lock:
             self.emulator.restart(silence_s)
 
@@ -436,8 +534,10 @@ class PtyFirmwareEmulator:
         self._wake_r = self._wake_w = -1
 
     def _run(self) -> None:
-        period = self.emulator.params.period / self._scale
-        next_tick = time.monotonic() + period
+        emulator = self.emulator
+        scale = self._scale
+        next_tick = time.monotonic() + emulator.params.period / scale
+        last_send = math.nan
         master, wake = self._master, self._wake_r
         while self._running:
             timeout = max(0.0, next_tick - time.monotonic())
@@ -453,16 +553,24 @@ class PtyFirmwareEmulator:
                     data = b''
                 if data:
                     with self.lock:
-                        self.emulator.receive(data)
+                        emulator.receive(data)
             now = time.monotonic()
             if now < next_tick:
                 continue
-            due = int((now - next_tick) / period) + 1
-            self.late_ticks += due - 1
-            next_tick += due * period
+            # Every period that has ended produces its line (each period with its own jitter).
+            chunks = []
             with self.lock:
-                out = b''.join(self.emulator.tick() for _ in range(due))
-            self._send(master, out)
+                while next_tick <= now:
+                    chunks.append(emulator.tick())
+                    next_tick += emulator.last_period_s / scale
+            self.late_ticks += len(chunks) - 1
+            if last_send == last_send:  # not NaN
+                gap = now - last_send
+                self.max_send_gap_s = max(self.max_send_gap_s, gap)
+                if gap > 10.0 * emulator.params.period / scale:
+                    self.long_gaps += 1
+            last_send = now
+            self._send(master, b''.join(chunks))
 
     def _send(self, master: int, data: bytes) -> None:
         try:
@@ -477,7 +585,9 @@ def _build_parser() -> argparse.ArgumentParser:
     d = GripperModelParams()
     parser = argparse.ArgumentParser(
         description='Gripper firmware emulator on a pseudo-terminal (500 Hz angle lines, '
-                    'answers T<volts>). Point the driver\'s serial.port at the printed path.')
+                    'answers T<volts>, reproduces the firmware behaviours listed in the module '
+                    'docstring). Point the driver\'s serial.port at the printed path.',
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     parser.add_argument('--link', default=None,
                         help='create this symlink to the pty (stable path across reappear)')
     parser.add_argument('--stroke', type=float, default=d.stroke, help='open limit [m]')
@@ -487,6 +597,10 @@ def _build_parser() -> argparse.ArgumentParser:
                         help='object between the pads [m]; 0 = none')
     parser.add_argument('--object-stiffness', type=float, default=d.object_stiffness,
                         help='object stiffness [N/m]')
+    parser.add_argument('--boot-time', type=float, default=d.boot_time,
+                        help='silence after a firmware reset while the rotor aligns [s]')
+    parser.add_argument('--period-jitter', type=float, default=d.period_jitter,
+                        help='each telemetry period is late by up to this much [s]')
     parser.add_argument('--garbage-every', type=int, default=0,
                         help='inject a line of random bytes every N telemetry lines')
     parser.add_argument('--netft', action='append', default=[], metavar='HOST:PORT',
@@ -515,7 +629,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                   flush=True)
     model = GripperModelParams(stroke=args.stroke, initial_opening=args.initial_opening,
                                object_width=args.object_width,
-                               object_stiffness=args.object_stiffness)
+                               object_stiffness=args.object_stiffness,
+                               boot_time=args.boot_time, period_jitter=args.period_jitter)
     pty_emu = PtyFirmwareEmulator(FirmwareEmulator(model, seed=args.seed), link_path=args.link)
     port = pty_emu.start()
     netfts = []
@@ -560,7 +675,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(json.dumps({
             'lines_sent': e.lines_sent, 'commands_received': e.commands_received,
             'late_ticks': pty_emu.late_ticks, 'dropped_writes': pty_emu.dropped_writes,
+            'max_send_gap_s': pty_emu.max_send_gap_s, 'long_gaps': pty_emu.long_gaps,
             'too_long_replies': e.too_long_replies, 'nonfinite_commands': e.nonfinite_commands,
+            'malformed_commands': e.malformed_commands, 'stale_reruns': e.stale_reruns,
             'last_voltage_v': e.target_voltage_v, 'model': asdict(model)}), flush=True)
     return 0
 

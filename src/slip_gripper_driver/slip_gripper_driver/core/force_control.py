@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: Apache-2.0
 """Inner grasp-force controller, shared by the gripper driver and the simulator (ROS-free).
 
-Control law (control_and_estimation spec §2.3), once per gripper telemetry line::
+Control law (control_and_estimation §2.3), once per gripper telemetry line::
 
     bypass (open loop) if |F_m| < contact_threshold, the F/T is not biased, or F_d < 0:
         u = F_d;  E = 0;  e_prev = 0
@@ -45,6 +45,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from enum import IntEnum
+from typing import NamedTuple
 
 from slip_cell_common.core.param_schema import ranged_field as _f
 from slip_cell_common.core.validation import validate_fields
@@ -123,9 +124,8 @@ class BypassReason(IntEnum):
 _NAN = math.nan
 
 
-@dataclass(frozen=True, slots=True)
-class ForceLoopInput:
-    """Inputs of one controller step (SI; all stamps on the same clock).
+class ForceLoopInput(NamedTuple):
+    """Inputs of one controller step (SI; all stamps on the same clock; one per line).
 
     Attributes:
         t: Acquisition stamp of the triggering telemetry line [s].
@@ -142,6 +142,8 @@ class ForceLoopInput:
         opening_rate: Opening rate [m/s] (positive opening); NaN if unknown.
         stroke: Opening at the open limit [m]; NaN if unknown.
         safe_state: Apply the safe state (no force) this step.
+        hold_integral: Keep the integral this step (the bridge limits the command while it
+            resumes after a stall, so the error then is not the controller's to integrate).
     """
 
     t: float
@@ -158,10 +160,10 @@ class ForceLoopInput:
     opening_rate: float = _NAN
     stroke: float = _NAN
     safe_state: bool = False
+    hold_integral: bool = False
 
 
-@dataclass(frozen=True, slots=True)
-class ForceLoopOutput:
+class ForceLoopOutput(NamedTuple):
     """Result of one controller step.
 
     Attributes:
@@ -313,7 +315,7 @@ class GraspForceController:
         delta = error - self._e_prev
         scale = 1.0 + p.gamma * delta * delta
         self._e_prev = error
-        if dt_ok:
+        if dt_ok and not inp.hold_integral:
             self._error_integral += error * dt
         integral = p.ki * self._error_integral
         limit = p.i_max / scale
@@ -352,19 +354,20 @@ class GraspForceController:
         """``(F_m, fresh, fault)`` for the configured measurement."""
         p = self.params
         t = inp.t
-        ages: tuple[float, ...]
+        # The older sample decides; NaN ages (no sample yet) compare False everywhere below,
+        # so they count as stale and faulted (max() would drop a NaN, hence the branches).
         if p.measurement == 'finger_1':
             fm = -inp.fz_1
-            ages = (t - inp.ft_stamp_1,)
+            age_1 = age_2 = t - inp.ft_stamp_1
         elif p.measurement == 'finger_2':
             fm = -inp.fz_2
-            ages = (t - inp.ft_stamp_2,)
+            age_1 = age_2 = t - inp.ft_stamp_2
         else:
             fm = -0.5 * (inp.fz_1 + inp.fz_2)
-            ages = (t - inp.ft_stamp_1, t - inp.ft_stamp_2)
-        # NaN ages (no sample yet) compare False, so they count as stale and faulted.
-        fresh = math.isfinite(fm) and all(a <= p.ft_stale_after for a in ages)
-        fault = not all(a <= p.ft_fault_after for a in ages)
+            age_1, age_2 = t - inp.ft_stamp_1, t - inp.ft_stamp_2
+        stale, fault_after = p.ft_stale_after, p.ft_fault_after
+        fresh = math.isfinite(fm) and age_1 <= stale and age_2 <= stale
+        fault = not (age_1 <= fault_after and age_2 <= fault_after)
         return fm, fresh, fault
 
     def _end_stop(self, inp: ForceLoopInput, fd: float) -> bool:

@@ -175,6 +175,12 @@ class Homing:
         self._enter(HomingPhase.CLOSING, t)
         self.message = 'closing'
 
+    def adopt(self, result: HomingResult) -> None:
+        """Take known limits without running the sequence (aborts a run in progress)."""
+        self.result = result
+        self.phase = HomingPhase.DONE
+        self.message = f'homed: stroke {result.stroke * 1e3:.2f} mm'
+
     def abort(self, reason: str) -> None:
         """Stop an active homing run (link loss, deactivate, stop request)."""
         if self.active:

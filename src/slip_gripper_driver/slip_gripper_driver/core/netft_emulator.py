@@ -1,12 +1,28 @@
 # SPDX-License-Identifier: Apache-2.0
 """ATI Net F/T box emulator: RDT over UDP with the real codecs (for tests and demos).
 
-Serves the 8-byte requests and streams 36-byte big-endian records (`netft` codecs) from a UDP
-socket, by default on ``127.0.0.1`` with an ephemeral port. Like the real box it serves one
-client (a new start redirects the stream), honours ``sample_count``, buffered streaming, the
-device-side bias (0x0042) and latch reset (0x0041), and can serve ``/netftapi2.xml`` over
-HTTP. Faults for tests: dropped, duplicated, reordered, truncated and garbage datagrams,
-sequence numbers near the 32-bit wrap, status words, pauses.
+Serves the 8-byte requests and streams 36-byte big-endian records (`rdt_codec`) from a UDP
+socket, by default on ``127.0.0.1`` with an ephemeral port. Device behaviours it reproduces
+(hardware_protocols §4):
+
+* one client per box: a new start request redirects the stream to its sender;
+* **every start request opens a new stream numbered from 1** (``rdt_sequence``), while
+  ``ft_sequence`` keeps counting across streams until the box restarts (§4.3);
+* ``sample_count``, real-time (0x0002) and buffered (0x0003) streaming, stop (0x0000);
+* the device bias (0x0042) subtracts the current reading inside the box and **stops the
+  stream** until the next start request (``stop_on_bias``, on by default; §4.7);
+* latch reset (0x0041) clears the status word;
+* status words on demand (`set_status`, e.g. ``0x80020000``: the box keeps streaming at its
+  rate with the error bits set) and values beyond the measuring range (`inject`
+  ``out_of_range``; the range is served as ``cfgmr``) (§4.5);
+* a reboot (`reboot`): streaming stops, the client is forgotten, both counters restart, the
+  status word and the device bias are lost, requests are ignored while it boots (§4.7);
+* a stream that stops on its own (`stop_stream`), as after a device bias;
+* ``/netftapi2.xml`` over HTTP (``cfgcpf``, ``cfgcpt``, units, ``cfgmr``, ``comrdtrate``,
+  ``setbias``) on a chosen or ephemeral port (§4.1, §4.4).
+
+Faults for tests: dropped, duplicated, reordered, truncated and garbage datagrams, sequence
+numbers near the 32-bit wrap, pauses.
 
 The wrench comes from ``force_source(t)`` (N, N·m, sensor frame; ``t`` = seconds since
 start) plus offsets and Gaussian noise, converted with the box's counts per unit.
@@ -24,23 +40,34 @@ import socket
 import sys
 import threading
 import time
-from typing import Callable, Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
-from slip_gripper_driver.core.netft import (RDT_PORT, DatagramError, ForceTorqueScale,
-                                            RdtCommand, decode_request, encode_record)
+from slip_gripper_driver.core.ft_scale import (ForceTorqueScale, force_unit_factor,
+                                               torque_unit_factor)
+from slip_gripper_driver.core.rdt_codec import (RDT_PORT, DatagramError, RdtCommand,
+                                                decode_request, encode_record)
 
 ForceSource = Callable[[float], Sequence[float]]
 
+#: Measuring range of a Mini40 (SI-40-2): |Fx|, |Fy|, |Fz| [N], |Tx|, |Ty|, |Tz| [N·m].
+MINI40_RANGE = (40.0, 40.0, 120.0, 2.0, 2.0, 2.0)
 
-def config_xml(scale: ForceTorqueScale, rate_hz: float, address: str) -> str:
-    """A ``netftapi2.xml`` document describing the emulated box."""
+
+def config_xml(scale: ForceTorqueScale, rate_hz: float, address: str,
+               measuring_range: Sequence[float] = MINI40_RANGE,
+               bias_counts: Sequence[int] = (0,) * 6) -> str:
+    """A ``netftapi2.xml`` document describing the emulated box (range given in N, N·m)."""
+    f = force_unit_factor(scale.force_unit)
+    m = torque_unit_factor(scale.torque_unit)
+    cfgmr = [v / f for v in measuring_range[:3]] + [v / m for v in measuring_range[3:]]
     tags = {
         'setserial': 'EMU00001', 'cfgcpf': f'{scale.counts_per_force:g}',
         'cfgcpt': f'{scale.counts_per_torque:g}', 'scfgfu': scale.force_unit,
-        'scfgtu': scale.torque_unit, 'comrdte': 'true', 'comrdtrate': f'{rate_hz:g}',
-        'runstat': '0', 'netip': address}
+        'scfgtu': scale.torque_unit, 'cfgmr': ';'.join(f'{v:g}' for v in cfgmr),
+        'setbias': ';'.join(str(int(v)) for v in bias_counts),
+        'comrdte': 'true', 'comrdtrate': f'{rate_hz:g}', 'runstat': '0', 'netip': address}
     body = ''.join(f'<{k}>{v}</{k}>' for k, v in tags.items())
     return f'<?xml version="1.0"?><netft>{body}</netft>'
 
@@ -58,20 +85,33 @@ class NetFTEmulator:
         noise_std: Standard deviation of Gaussian noise per component.
         seed: Noise/garbage seed.
         buffer_size: Records per datagram in buffered mode.
-        serve_http: Also serve ``/netftapi2.xml`` on an ephemeral HTTP port.
-        rdt_sequence_start: First ``rdt_sequence`` (near 2³² to test the wrap).
-        ft_sequence_start: First ``ft_sequence``.
+        serve_http: Also serve ``/netftapi2.xml`` over HTTP.
+        http_port: Its port (0 = ephemeral; the real box uses 80).
+        rdt_sequence_start: First ``rdt_sequence`` of every stream (the box: 1; near 2³² to
+            test the wrap).
+        ft_sequence_start: ``ft_sequence`` after power-up.
+        stop_on_bias: A device bias (0x0042) stops the stream until the next start request.
+        measuring_range: ``cfgmr`` in N, N·m (|Fx|, |Fy|, |Fz|, |Tx|, |Ty|, |Tz|).
     """
 
     def __init__(self, *, host: str = '127.0.0.1', port: int = 0, rate_hz: float = 1000.0,
                  scale: ForceTorqueScale = ForceTorqueScale(1.0e6, 1.0e6, 'N', 'N-m'),
                  force_source: ForceSource | None = None,
                  offsets: Sequence[float] = (0.0,) * 6, noise_std: float = 0.0, seed: int = 0,
-                 buffer_size: int = 4, serve_http: bool = False, rdt_sequence_start: int = 0,
-                 ft_sequence_start: int = 0) -> None:
+                 buffer_size: int = 4, serve_http: bool = False, http_port: int = 0,
+                 rdt_sequence_start: int = 1, ft_sequence_start: int = 0,
+                 stop_on_bias: bool = True,
+                 measuring_range: Sequence[float] = MINI40_RANGE) -> None:
         if rate_hz <= 0.0:
             raise ValueError('rate_hz must be > 0')
+        if len(measuring_range) != 6:
+            raise ValueError('measuring_range needs six values')
         self.scale = scale
+        self.stop_on_bias = stop_on_bias
+        self.measuring_range = tuple(float(v) for v in measuring_range)
+        self._rdt_start = rdt_sequence_start
+        self._ft_start = ft_sequence_start
+        self._http_port_wanted = http_port
         self.rate_hz = rate_hz
         self.force_source = force_source
         self.offsets = tuple(float(v) for v in offsets)
@@ -100,6 +140,7 @@ class NetFTEmulator:
         self._status = 0
         self._bias_counts: tuple[int, ...] = (0,) * 6
         self._paused = False
+        self._booting_until = -math.inf
         self._held: bytes | None = None
         self._pending_batch: list[bytes] = []
         # injections: counts of upcoming records to affect
@@ -108,13 +149,16 @@ class NetFTEmulator:
         self._reorder = 0
         self._truncate = 0
         self._garbage = 0
+        self._out_of_range = 0
         # counters
         self.requests = 0
         self.bad_requests = 0
+        self.ignored_requests = 0
         self.starts = 0
         self.stops = 0
         self.biases = 0
         self.latch_resets = 0
+        self.reboots = 0
         self.records_sent = 0
         self.datagrams_sent = 0
 
@@ -141,23 +185,28 @@ class NetFTEmulator:
         self._thread = threading.Thread(target=self._run, name='netft-emulator', daemon=True)
         self._thread.start()
         if self._serve_http:
-            xml = config_xml(self.scale, self.rate_hz, self.address[0]).encode()
+            emulator = self
 
             class Handler(http.server.BaseHTTPRequestHandler):
-                def do_GET(self) -> None:  # noqa: N802 - http.server API
+                def do_GET(self) -> None:
                     if self.path.split('?')[0] != '/netftapi2.xml':
                         self.send_error(404)
                         return
+                    with emulator.lock:
+                        bias = emulator._bias_counts
+                    xml = config_xml(emulator.scale, emulator.rate_hz, emulator.address[0],
+                                     emulator.measuring_range, bias).encode()
                     self.send_response(200)
                     self.send_header('Content-Type', 'text/xml')
                     self.send_header('Content-Length', str(len(xml)))
                     self.end_headers()
                     self.wfile.write(xml)
 
-                def log_message(self, format: str, *args: object) -> None:  # noqa: A002
+                def log_message(self, format: str, *args: object) -> None:
                     del format, args  # quiet
 
-            self._http = http.server.ThreadingHTTPServer((self.address[0], 0), Handler)
+            self._http = http.server.ThreadingHTTPServer(
+                (self.address[0], self._http_port_wanted), Handler)
             self._http_thread = threading.Thread(target=self._http.serve_forever,
                                                  kwargs={'poll_interval': 0.02},
                                                  name='netft-emulator-http', daemon=True)
@@ -183,15 +232,17 @@ class NetFTEmulator:
 
     # ------------------------------------------------------------------ fault injection
     def inject(self, *, drop: int = 0, duplicate: int = 0, reorder: int = 0, truncate: int = 0,
-               garbage: int = 0) -> None:
+               garbage: int = 0, out_of_range: int = 0) -> None:
         """Affect the next records: drop, send twice, swap with the following one, send
-        truncated (20 bytes), or send a garbage datagram (random length) before them."""
+        truncated (20 bytes), send a garbage datagram (random length) before them, or report
+        Fz at 1.5 times the measuring range (status word unchanged)."""
         with self.lock:
             self._drop += drop
             self._duplicate += duplicate
             self._reorder += reorder
             self._truncate += truncate
             self._garbage += garbage
+            self._out_of_range += out_of_range
 
     def set_status(self, status: int) -> None:
         """Status word of the following records."""
@@ -203,13 +254,32 @@ class NetFTEmulator:
         with self.lock:
             self._paused = paused
 
-    def reboot(self) -> None:
-        """The box restarts: streaming stops, the client is forgotten, counters restart at 0."""
+    def reboot(self, boot_time_s: float = 0.0) -> None:
+        """The box restarts: streaming stops, the client is forgotten, both counters restart,
+        the status word and the device bias are lost; requests are ignored for
+        ``boot_time_s`` [s]."""
         with self.lock:
+            self.reboots += 1
             self._streaming = False
             self.client = None
-            self._rdt_seq = self._ft_seq = 0
+            self._rdt_seq = self._rdt_start
+            self._ft_seq = self._ft_start
+            self._status = 0
             self._bias_counts = (0,) * 6
+            self._pending_batch = []
+            self._booting_until = time.monotonic() + boot_time_s
+
+    def stop_stream(self) -> None:
+        """Stop sending until the next start request, as a box may after a device bias."""
+        with self.lock:
+            self._streaming = False
+            self._pending_batch = []
+
+    @property
+    def bias_counts(self) -> tuple[int, ...]:
+        """Device bias in counts (``setbias``)."""
+        with self.lock:
+            return self._bias_counts
 
     def set_sequences(self, rdt_sequence: int, ft_sequence: int) -> None:
         """Jump the sequence counters (e.g. to just below 2³², or back to 0 = box reset)."""
@@ -259,6 +329,9 @@ class NetFTEmulator:
                 return
             with self.lock:
                 self.requests += 1
+                if time.monotonic() < self._booting_until:
+                    self.ignored_requests += 1
+                    continue
                 try:
                     command, count = decode_request(data)
                 except DatagramError:
@@ -275,6 +348,8 @@ class NetFTEmulator:
             self._remaining = count
             self._next_due = time.monotonic()
             self._pending_batch = []
+            self._rdt_seq = self._rdt_start  # every stream is numbered from 1
+            self._held = None
         elif command == RdtCommand.STOP:
             self.stops += 1
             self._streaming = False
@@ -282,6 +357,9 @@ class NetFTEmulator:
             self.biases += 1
             self._bias_counts = (0,) * 6
             self._bias_counts = self._wrench_counts(time.monotonic() - self._t0)
+            if self.stop_on_bias:
+                self._streaming = False
+                self._pending_batch = []
         elif command == RdtCommand.RESET_LATCH:
             self.latch_resets += 1
             self._status = 0
@@ -294,8 +372,13 @@ class NetFTEmulator:
         for _ in range(n):
             if not self._streaming:
                 break
-            record = encode_record(self._rdt_seq, self._ft_seq, self._status,
-                                   self._wrench_counts(t))
+            counts = self._wrench_counts(t)
+            if self._out_of_range > 0:
+                self._out_of_range -= 1
+                beyond = self.scale.to_counts((0.0, 0.0, 1.5 * max(self.measuring_range[2], 1.0),
+                                               0.0, 0.0, 0.0))
+                counts = (*counts[:2], beyond[2], *counts[3:])
+            record = encode_record(self._rdt_seq, self._ft_seq, self._status, counts)
             self._rdt_seq = (self._rdt_seq + 1) & 0xFFFFFFFF
             self._ft_seq = (self._ft_seq + 1) & 0xFFFFFFFF
             if self._remaining > 0:
@@ -356,17 +439,37 @@ class NetFTEmulator:
 def main(argv: Sequence[str] | None = None) -> int:
     """Console entry point: serve one emulated box until Ctrl-C or ``--duration``."""
     parser = argparse.ArgumentParser(
-        description='ATI Net F/T RDT emulator on UDP (real 8/36-byte codecs).')
+        description='ATI Net F/T RDT emulator on UDP (real 8/36-byte codecs): streams numbered '
+                    'from 1 per start request, device bias stops the stream, error status '
+                    'words and reboots on demand.',
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     parser.add_argument('--host', default='127.0.0.1', help='address to bind')
-    parser.add_argument('--port', type=int, default=RDT_PORT, help='UDP port (0 = any)')
+    parser.add_argument('--port', type=int, default=RDT_PORT, help='RDT UDP port (0 = any)')
     parser.add_argument('--rate', type=float, default=1000.0, help='record rate [Hz]')
-    parser.add_argument('--counts-per-force', type=float, default=1.0e6, help='cfgcpf')
-    parser.add_argument('--counts-per-torque', type=float, default=1.0e6, help='cfgcpt')
+    parser.add_argument('--counts-per-force', type=float, default=1.0e6,
+                        help='cfgcpf [counts/N]')
+    parser.add_argument('--counts-per-torque', type=float, default=1.0e6,
+                        help='cfgcpt [counts/N-m]')
+    parser.add_argument('--range', type=float, nargs=6, default=list(MINI40_RANGE),
+                        metavar=('FX', 'FY', 'FZ', 'TX', 'TY', 'TZ'),
+                        help='measuring range cfgmr [N, N-m]')
     parser.add_argument('--fz', type=float, default=0.0, help='constant Fz [N]')
-    parser.add_argument('--offset-fz', type=float, default=0.0, help='Fz offset [N]')
-    parser.add_argument('--noise', type=float, default=0.0, help='noise std per component')
+    parser.add_argument('--offset-fz', type=float, default=0.0,
+                        help='Fz offset that a bias removes [N]')
+    parser.add_argument('--noise', type=float, default=0.0,
+                        help='Gaussian noise std per component [N, N-m]')
+    parser.add_argument('--status', type=lambda text: int(text, 0), default=0,
+                        help='status word of every record, e.g. 0x80020000 (saturation)')
+    parser.add_argument('--stop-on-bias', action=argparse.BooleanOptionalAction, default=True,
+                        help='a device bias (0x0042) stops the stream until the next start')
+    parser.add_argument('--reboot-every', type=float, default=0.0,
+                        help='reboot the box every this many seconds (bias lost, numbering '
+                             'restarts); 0 = never')
     parser.add_argument('--http', action='store_true', help='serve /netftapi2.xml')
-    parser.add_argument('--duration', type=float, default=0.0, help='seconds; 0 = forever')
+    parser.add_argument('--http-port', type=int, default=0,
+                        help='HTTP port of /netftapi2.xml (0 = any; the box uses 80)')
+    parser.add_argument('--duration', type=float, default=0.0,
+                        help='seconds to run; 0 = until Ctrl-C')
     args = parser.parse_args(argv)
     fz = args.fz
     emu = NetFTEmulator(
@@ -374,7 +477,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         scale=ForceTorqueScale(args.counts_per_force, args.counts_per_torque, 'N', 'N-m'),
         force_source=lambda _t: (0.0, 0.0, fz, 0.0, 0.0, 0.0),
         offsets=(0.0, 0.0, args.offset_fz, 0.0, 0.0, 0.0), noise_std=args.noise,
-        serve_http=args.http)
+        serve_http=args.http, http_port=args.http_port, stop_on_bias=args.stop_on_bias,
+        measuring_range=args.range)
+    emu.set_status(args.status)
     host, port = emu.start()
     print(f'Net F/T emulator on {host}:{port}'
           + (f', http://{host}:{emu.http_port}/netftapi2.xml' if args.http else ''), flush=True)
@@ -382,13 +487,21 @@ def main(argv: Sequence[str] | None = None) -> int:
     previous = {sig: signal.signal(sig, lambda *_: stop.set())
                 for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
-        stop.wait(args.duration if args.duration > 0.0 else None)
+        deadline = time.monotonic() + args.duration if args.duration > 0.0 else math.inf
+        next_reboot = time.monotonic() + args.reboot_every if args.reboot_every > 0 else math.inf
+        while not stop.is_set() and time.monotonic() < deadline:
+            stop.wait(max(0.0, min(deadline, next_reboot, time.monotonic() + 1.0)
+                          - time.monotonic()))
+            if time.monotonic() >= next_reboot:
+                emu.reboot()
+                emu.set_status(args.status)
+                next_reboot += args.reboot_every
     finally:
         emu.stop()
         for sig, handler in previous.items():
             signal.signal(sig, handler)
-    print(f'records sent: {emu.records_sent}, starts: {emu.starts}, stops: {emu.stops}',
-          flush=True)
+    print(f'records sent: {emu.records_sent}, starts: {emu.starts}, stops: {emu.stops}, '
+          f'biases: {emu.biases}, reboots: {emu.reboots}', flush=True)
     return 0
 
 

@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: Apache-2.0
-"""Opening-rate tracking observer (hardware_protocols spec §2.4).
+"""Opening-rate tracking observer (hardware_protocols §2.4).
 
 Per telemetry line, with ``dt`` the difference of consecutive acquisition stamps::
 

@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: Apache-2.0
 """Gripper actuator ASCII link: telemetry parser and voltage-command codec (ROS-free).
 
-Link summary (hardware_protocols spec §2):
+Link summary (hardware_protocols §2):
 
 * Device → host: one line every 2 ms holding the SimpleFOC shaft angle [rad, multi-turn,
   relative to power-up] with exactly four decimals, e.g. ``3.1416\\r\\n``. The same stream
@@ -10,8 +10,11 @@ Link summary (hardware_protocols spec §2):
   ``Voltage control`` and init text mean the firmware (re)started.
 * Host → device: ``T<volts>\\n`` only; negative volts close the gripper. The firmware parses
   the value with C ``atof``, so any non-numeric text silently becomes **0 V** and releases
-  the grasp; the last accepted value is applied forever. The host therefore formats only
-  finite, clipped values with the fixed ``T%.2f`` format (HW-3).
+  the grasp, and ``nan``/``inf`` are accepted; the last accepted value is applied forever.
+  The host therefore formats only finite, clipped values with the fixed ``T%.2f`` format
+  (HW-3). The firmware appends bytes until ``\\n``, so a fragment would merge with the next
+  command: every command leaves in one write, and each connection opens with a bare
+  newline (`CONNECT_FLUSH`) in the same write as the first command (§2.2).
 
 Force ↔ voltage at stall: ``F = -k_FV · V`` with ``k_FV`` = ``newton_per_volt`` (3.9166 N/V on
 the reference cell); back-EMF lowers the force while the motor moves.
@@ -30,6 +33,13 @@ from slip_cell_common.core.validation import validate_fields
 
 #: The firmware drops its buffer after this many characters without a newline.
 FIRMWARE_MAX_LINE_CHARS = 20
+
+#: Nominal telemetry period of the firmware [s] (500 Hz, hardware_protocols §1.1).
+TELEMETRY_PERIOD_S = 0.002
+
+#: Sent before the first command of every connection, in the same write: ends whatever
+#: fragment a previous host left in the firmware's buffer (§2.2).
+CONNECT_FLUSH = b'\n'
 
 #: Largest voltage magnitude the fixed command format may carry (keeps ``T-xx.xx``).
 MAX_FORMAT_VOLTAGE_V = 99.99
@@ -89,9 +99,8 @@ _UNKNOWN_REJECTED = ParsedLine(LineKind.UNKNOWN, _NAN, 'firmware_rejected')
 _UNKNOWN_TEXT = ParsedLine(LineKind.UNKNOWN, _NAN, 'text')
 
 
-@dataclass(frozen=True)
-class ParserCounters:
-    """Snapshot of a parser's counters (lines since the last reset).
+class ParserCounters(NamedTuple):
+    """Snapshot of a parser's counters (lines since the last reset; taken on every line).
 
     ``good + bad + unknown == total``; ``non_finite`` and ``too_long`` are subsets of ``bad``;
     ``restarts`` and ``firmware_rejects`` are subsets of ``unknown``.
@@ -136,6 +145,16 @@ class TelemetryParser:
         """Counter snapshot."""
         return ParserCounters(self._good, self._bad, self._unknown, self._non_finite,
                               self._too_long, self._restarts, self._rejects)
+
+    @property
+    def good(self) -> int:
+        """Telemetry lines (the status's ``line_count``, read per line without a snapshot)."""
+        return self._good
+
+    @property
+    def not_telemetry(self) -> int:
+        """Bad plus unknown lines."""
+        return self._bad + self._unknown
 
     def parse(self, line: bytes, overflow: bool = False) -> ParsedLine:
         """Classify one line and update the counters; never raises on any input.
@@ -216,18 +235,22 @@ def format_voltage_command(voltage_v: float, voltage_limit_v: float) -> bytes:
     text = f'{clipped:.2f}'
     if text == '-0.00':
         text = '0.00'
-    command = b'T' + text.encode('ascii') + b'\n'
-    if _COMMAND_RE.fullmatch(command) is None:  # defensive: formatting must never drift
-        raise CommandError(f'internal error: malformed command {command!r}')
-    return command
+    # A finite value within ±99.99 formats as -?d{1,2}.dd: only a longer text could drift
+    # from _COMMAND_RE (defensive; cheaper than matching the pattern on every line).
+    if len(text) > 6:
+        raise CommandError(f'internal error: malformed command {text!r}')
+    return b'T' + text.encode('ascii') + b'\n'
 
 
 def command_voltage(command: bytes) -> float:
-    """Voltage [V] carried by a command produced by `format_voltage_command`.
+    """Voltage [V] carried by a command produced by `format_voltage_command` (optionally
+    preceded by `CONNECT_FLUSH`, as the first write of a connection is).
 
     Raises:
         CommandError: ``command`` is not in the host's fixed format.
     """
+    if command[:1] == CONNECT_FLUSH:
+        command = command[1:]
     if _COMMAND_RE.fullmatch(command) is None:
         raise CommandError(f'not a host voltage command: {command!r}')
     return float(command[1:-1])

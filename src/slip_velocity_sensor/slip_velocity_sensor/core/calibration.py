@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: Apache-2.0
 """Per-chip speed calibration: the correction law, upload commands and calibration files (SI).
 
-The firmware corrects each chip axis as (hardware_protocols spec §3.4, §3.6)::
+The firmware corrects each chip axis as (hardware_protocols §3.4, §3.6)::
 
     v = v_raw / (b + a·term(v_raw))
 
@@ -35,7 +35,8 @@ import math
 from dataclasses import dataclass, field
 from enum import Enum
 from pathlib import Path
-from typing import Any, Mapping, TypeVar, overload
+from typing import Any, TypeVar, overload
+from collections.abc import Mapping
 
 import numpy as np
 import yaml
@@ -126,7 +127,8 @@ class SensorCalibration:
         """Correction of chip ``chip`` (1..3), axis ``'x'`` or ``'y'``."""
         if axis not in AXES:
             raise ValueError(f"axis must be 'x' or 'y', got {axis!r}")
-        return getattr(self.chips[chip - 1], axis)
+        correction: AxisCalibration = getattr(self.chips[chip - 1], axis)
+        return correction
 
     def problems(self) -> list[str]:
         """Reasons the calibration is unusable (empty when valid)."""

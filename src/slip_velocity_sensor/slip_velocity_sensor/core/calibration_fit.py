@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: Apache-2.0
-"""Offline fit of one chip axis from a stop-to-stop recording (hardware_protocols spec §3.7).
+"""Offline fit of one chip axis from a stop-to-stop recording (hardware_protocols §3.7).
 
 Input: a single-chip-mode recording of one chip axis, stamps t [s] and raw speed v [m/s],
 taken while the surface was moved between two hard stops ``distance`` apart (`procedure`).

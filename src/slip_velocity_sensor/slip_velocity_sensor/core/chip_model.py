@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: Apache-2.0
-"""Model of the optical chips' motion counters (hardware_protocols spec §3.1, §3.2), ROS-free.
+"""Model of the optical chips' motion counters (hardware_protocols §3.1, §3.2), ROS-free.
 
 Each chip axis reports motion as a signed 8-bit count of resolution steps since the last read.
 The firmware reads the chips every ~1.7 ms, so at most ±127 counts (≈ 1.0 mm) per read can be

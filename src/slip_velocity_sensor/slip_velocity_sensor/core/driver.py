@@ -30,7 +30,7 @@ import threading
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
+from collections.abc import Callable
 
 from slip_cell_common.core.monitors import Level, Report
 from slip_cell_common.core.param_schema import flatten
@@ -38,8 +38,8 @@ from slip_cell_common.core.serial_transport import (ByteStream, LinkError, Recon
                                                 SerialLink, open_stream)
 from slip_velocity_sensor.core import protocol
 from slip_velocity_sensor.core.calibration import SensorCalibration, upload_commands
-from slip_velocity_sensor.core.handshake import (Handshake, HandshakeError, HandshakeResult,
-                                                 HandshakeRunner)
+from slip_velocity_sensor.core.handshake import (Handshake, HandshakeError, HandshakeFailure,
+                                                 HandshakeResult, HandshakeRunner)
 from slip_velocity_sensor.core.identity import (DuplicateSensorNameError, NameClaim,
                                                 default_lock_dir)
 from slip_velocity_sensor.core.params import VelocitySensorParams
@@ -54,7 +54,17 @@ _BOUND_AT_CONFIGURE = ('calibration.', 'reconnect.')
 
 
 class DriverError(RuntimeError):
-    """Configure-time or command failure; the message names the port."""
+    """Configure-time or command failure; the message names the port.
+
+    Attributes:
+        retryable: The same attempt may succeed later (port missing or busy, device silent,
+            no name reply, re-sync loop, link failure); False for a wrong name, a name claimed
+            by another port, or a driver closed while connecting.
+    """
+
+    def __init__(self, message: str, *, retryable: bool = False) -> None:
+        super().__init__(message)
+        self.retryable = retryable
 
 
 @dataclass(frozen=True)
@@ -115,7 +125,7 @@ class SensorDriver:
         self.params = params
         self.calibration = calibration
         self.port = params.port
-        self.session = SensorSession(params.session_params(), port=params.port,
+        self.session = SensorSession(params.session, port=params.port,
                                      expected_name=params.expected_name)
         self._clock = clock
         self._wait_clock = wait_clock
@@ -140,6 +150,8 @@ class SensorDriver:
         self._reinit_failures = 0
         self._last_error = ''
         self._stop = threading.Event()
+        self._closed = False
+        self._thread_lock = threading.Lock()  # starting vs joining the reader and supervisor
         self._wake = threading.Event()
         self._supervisor: threading.Thread | None = None
         self._supervise_period_s = supervise_period_s
@@ -153,35 +165,53 @@ class SensorDriver:
 
         Raises:
             DriverError: Port missing or busy, no or wrong answer, re-sync loop, name already
-                claimed by another port; the message names the port. Nothing stays open.
+                claimed by another port, `close` called meanwhile; the message names the port
+                and ``retryable`` says whether trying again later makes sense. Nothing stays
+                open. A closed driver cannot connect again: make a new one.
         """
         try:
             self._link.open()
             result = self._run_handshake(start_reader=True)
             self._claim_name()
+            if self._closed:
+                raise LinkError(f'{self.port}: driver closed while connecting')
         except (LinkError, HandshakeError, DuplicateSensorNameError) as exc:
+            closed = self._closed
             self.close()
-            raise DriverError(str(exc)) from exc
-        self._initialised(result)
-        self._stop.clear()
-        self._supervisor = threading.Thread(target=self._supervise,
-                                            name=f'velocity-sensor supervisor {self.port}',
-                                            daemon=True)
-        self._supervisor.start()
+            wrong_name = (isinstance(exc, HandshakeError)
+                          and exc.reason is HandshakeFailure.WRONG_NAME)
+            retryable = not (closed or wrong_name or isinstance(exc, DuplicateSensorNameError))
+            raise DriverError(str(exc), retryable=retryable) from exc
+        with self._thread_lock:  # no thread is started after (or joined during) close
+            if not self._closed:
+                self._initialised(result)
+                self._stop.clear()
+                self._supervisor = threading.Thread(
+                    target=self._supervise, name=f'velocity-sensor supervisor {self.port}',
+                    daemon=True)
+                self._supervisor.start()
+        if self._closed:
+            self.close()
+            raise DriverError(f'{self.port}: driver closed while connecting')
         return result
 
     def close(self) -> None:
-        """Stop the supervisor and the reader, close the port, release the name (idempotent)."""
+        """Stop the supervisor and the reader, close the port, release the name (idempotent).
+
+        Safe from another thread while `connect` runs: the handshake fails at once.
+        """
+        self._closed = True
         self._stop.set()
         self._wake.set()
         runner = self._runner
         if runner is not None:
             runner.on_lost(self._clock(), f'{self.port}: driver closing')
-        supervisor = self._supervisor
+        with self._thread_lock:
+            supervisor, self._supervisor = self._supervisor, None
         if supervisor is not None and supervisor is not threading.current_thread():
             supervisor.join(self.params.handshake.timeout + 1.0)
-        self._supervisor = None
-        self._link.close()
+        with self._thread_lock:
+            self._link.close()
         if self._claim is not None:
             self._claim.release()
             self._claim = None
@@ -197,7 +227,7 @@ class SensorDriver:
         old = flatten(self.params)
         changed = [name for name, value in flatten(params).items() if old.get(name) != value]
         self.params = params
-        self.session.update_params(params.session_params())
+        self.session.update_params(params.session)
         return tuple(n for n in changed if n == 'radius' or n.startswith(_BOUND_AT_CONFIGURE))
 
     # ---------------------------------------------------------------- commands
@@ -326,9 +356,13 @@ class SensorDriver:
                        command_spacing=self.params.command_spacing, port=self.port)
         runner = HandshakeRunner(hs, self.session.parser)
         self._runner = runner  # route lines to the handshake before the reader delivers any
+        if self._closed:
+            runner.on_lost(self._clock(), f'{self.port}: driver closing')
         try:
             if start_reader:
-                self._link.start()
+                with self._thread_lock:
+                    if not self._closed:  # else the handshake fails on the queued loss
+                        self._link.start()
             return runner.run(self._write, self._wait_clock)
         finally:
             self._runner = None

@@ -1,24 +1,39 @@
 # SPDX-License-Identifier: Apache-2.0
 """Firmware emulator of the optical velocity sensor, in-process or on a pseudo-terminal.
 
-The emulator plays the ESP32 firmware of hardware_protocols spec §3 at the byte level, so the
-host code under test is the real parser, handshake and session:
+The emulator plays the ESP32 firmware of hardware_protocols §3 at the byte level, so the
+host code under test is the real parser, handshake and session. What it reproduces of the
+shipped firmware (the behaviour observed on it wins where the spec says otherwise):
 
-* a **sensor task** polls the three chips every ``poll_period`` (≈ 1.7 ms): the true twist of
-  the surface relative to the sensor (a motion callback ``t → (vx, vy, ω)``, SI, sensor frame)
-  gives each chip's true velocity through the rigid-body model; the chips read low by the true
-  calibration (`SensorCalibration`, raw = b·v/(1 − a·|v|)), and `CountQuantizer` turns motion
-  into 3200-CPI counts with carried remainders and ±127 saturation per poll;
-* a **serial task** every ``output_period`` (≈ 8.3 ms, 120 Hz) takes the counts, converts them
-  to mm/s with its own dt, applies the device calibration ``v_raw/(b + a·v_raw)`` (signed v_raw
-  like the shipped firmware, or |v_raw|), fuses with outlier rejection (`RigidBodyFusion` built
-  with the uploaded radius), prints ``v/t%.4f/t%.4f/t%.4f`` and handles at most one command.
+* **Two tasks.** A sensor task polls the three chips every ``chip.poll_period`` (≈ 1.7 ms): the
+  true twist of the surface relative to the sensor (a motion callback ``t → (vx, vy, ω)``, SI,
+  sensor frame) gives each chip's true velocity through the rigid-body model; the chips read
+  low by the true calibration (`SensorCalibration`, raw = b·v/(1 − a·|v|)), and
+  `CountQuantizer` turns motion into 3200-CPI counts with carried remainders and ±127
+  saturation per poll. A serial task takes the counts, converts them to mm/s with its own dt,
+  applies the device calibration ``v_raw/(b + a·v_raw)`` (signed v_raw like the shipped
+  firmware, or |v_raw|), fuses with outlier rejection (`RigidBodyFusion` built with the
+  uploaded radius), prints ``v/t%.4f/t%.4f/t%.4f`` and handles at most one command.
+* **Serial period.** ``vTaskDelay(6)`` plus printing and scheduling: every period is drawn
+  uniformly from 6–8 ms (125–167 Hz; ``output_period`` 7 ms ± ``period_jitter`` 1/7).
+* **Chip re-sync.** When a chip does not answer its product-ID read (`set_chip_blind`,
+  `inject_resync`), the sensor task prints ``n/tresynch`` and then the three product IDs as
+  signed decimals separated by spaces (``0 49 49``: chip 1 holds its data line low; ``-1``: the
+  line is pulled high) *before* it re-syncs, and repeats this on every pass (every
+  ``resync_pass_period``, ≈ 6 ms) while the chip stays out. No chip is read meanwhile, so the
+  serial task keeps printing ``v/t0.0000/t0.0000/t0.0000`` lines; the first line after the
+  chip answers again covers part of the re-sync (reads low). Nothing marks the end: the notices
+  just stop.
+* **Commands.** ``n`` (name), ``c<k>`` (chip mode; single-chip lines carry chip k's raw
+  chip-frame speeds and a stale ω), ``k<i><j><value>`` (radius in mm, per-chip a in 1/(mm/s)
+  and b, with free-text replies); a 256-byte receive buffer; malformed commands are ignored.
+* **Restart.** ESP32 ROM boot banner, silence for ``boot_duration``, calibration and chip mode
+  back to the firmware defaults (a = 0, b = 1, radius 20.3 mm, fused).
 
-Commands: ``n`` (name, optionally preceded by a chip re-sync that swallows the reply), ``c<k>``
-(chip mode; single-chip lines carry chip k's raw chip-frame speeds and a stale ω),
-``k<i><j><value>`` (radius in mm, per-chip a in 1/(mm/s) and b, with free-text replies).
-Fault injection: chips off the surface, count noise, garbage lines, silence, chip re-sync,
-board restart (ESP32 boot banner, calibration lost) and, on a pty, vanishing (unplugged).
+Fault injection beyond the firmware: chips off the surface, count noise, garbage lines,
+silence (a hung board), ``resync_on_identify`` (a transient re-sync that also loses the name
+reply of an ``n`` command, to exercise the host's re-ask path; the real firmware would still
+answer) and, on a pty, vanishing (unplugged).
 
 `FirmwareEmulator` is time-driven (``advance(t)``), so tests can run it in virtual time.
 `EmulatorStream` exposes it as an in-process byte stream; `PtyEmulator` serves it on a
@@ -39,7 +54,7 @@ import time
 import tty
 from collections import deque
 from dataclasses import dataclass, field, replace
-from typing import Callable, Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
@@ -96,8 +111,9 @@ class EmulatorParams:
 
     Attributes:
         name: Name compiled into the firmware (reply to ``n``).
-        output_period: Serial task period [s] (≈ 8.3 ms → 120 Hz).
-        period_jitter: Uniform jitter of each output period, fraction of the period.
+        output_period: Mean serial task period [s] (7 ms: ``vTaskDelay(6)`` plus printing).
+        period_jitter: Uniform jitter of each output period, fraction of the period (1/7:
+            every period in 6–8 ms, 125–167 Hz, like the firmware).
         radius: Physical chip radius [m] (what the chips really see).
         chip_angles: Physical chip angles [rad].
         default_radius: Radius the firmware uses until ``k00`` sets it [m] (20.3 mm).
@@ -108,17 +124,22 @@ class EmulatorParams:
         chip: Counter model (resolution, saturation, poll period, count noise).
         chips_off: Chips (1..3) initially off the surface (read no motion).
         garbage_probability: Probability per output line of also emitting a garbage line.
-        resync_on_identify: Number of ``n`` commands answered by a chip re-sync instead of
-            the name (the reply is swallowed, as in the failure the host must survive).
-        resync_duration: Time a re-sync takes before the product-ID line [s].
+        resync_on_identify: Number of ``n`` commands that start a transient re-sync and lose
+            their name reply (injected fault; see the module docstring).
+        resync_duration: How long a transient chip loss (`inject_resync`,
+            ``resync_on_identify``) lasts [s].
+        resync_pass_period: Time of one failing sensor pass (print the notice, re-sync) [s]:
+            the notices repeat at this period.
+        resync_chip: Chip (1..3) that drops out in a transient re-sync.
+        resync_product_id: What that chip reads meanwhile: 0 (data line low) or -1 (high).
         boot_duration: Time from a restart's boot banner to the first line [s].
         reply_to_commands: Print free-text replies to ``k`` commands.
         seed: Seed of the emulator's random generator (jitter, noise, garbage).
     """
 
     name: str = 'sensor_1'
-    output_period: float = 1.0 / 120.0
-    period_jitter: float = 0.0
+    output_period: float = 0.007
+    period_jitter: float = 1.0 / 7.0
     radius: float = 0.0243
     chip_angles: tuple[float, ...] = DEFAULT_CHIP_ANGLES
     default_radius: float = 0.0203
@@ -131,13 +152,16 @@ class EmulatorParams:
     garbage_probability: float = 0.0
     resync_on_identify: int = 0
     resync_duration: float = 0.05
+    resync_pass_period: float = 0.006
+    resync_chip: int = 1
+    resync_product_id: int = 0
     boot_duration: float = 0.3
     reply_to_commands: bool = True
     seed: int = 0
 
     def validate(self) -> None:
         """Raise ValueError on an unusable configuration."""
-        if self.output_period <= self.chip.poll_period:
+        if self.output_period * (1.0 - self.period_jitter) <= self.chip.poll_period:
             raise ValueError('output_period must exceed the chip poll period')
         if not 0.0 <= self.period_jitter < 0.5:
             raise ValueError('period_jitter must be in [0, 0.5)')
@@ -145,6 +169,12 @@ class EmulatorParams:
             raise ValueError('firmware_speed_term must be signed_compat or abs')
         if any(c not in (1, 2, 3) for c in self.chips_off):
             raise ValueError('chips_off entries must be 1..3')
+        if self.resync_chip not in (1, 2, 3):
+            raise ValueError('resync_chip must be 1..3')
+        if self.resync_product_id == protocol.EXPECTED_PRODUCT_ID:
+            raise ValueError('resync_product_id must differ from a healthy chip ID')
+        if not self.resync_pass_period > 0.0 or self.resync_duration < 0.0:
+            raise ValueError('resync_pass_period must be > 0 s and resync_duration >= 0 s')
         self.truth.validate()
 
 
@@ -177,8 +207,11 @@ class FirmwareEmulator:
             self._off[2 * (chip - 1):2 * chip] = True
         self._silent = False
         self._resyncs_left = p.resync_on_identify
-        self._resync_end: float | None = None
-        self._resync_announce = False
+        self._blind: dict[int, int] = {}            # chip -> product ID it reads
+        self._transient_until: float | None = None  # end of an injected chip loss [s]
+        self._next_pass: float | None = None        # next failing-pass check [s]
+        self._busy_until = -math.inf                # chips not read before this [s]
+        self._t_now = 0.0
         self._boot_end: float | None = None
         self._boot_announce = False
         self._started = False
@@ -191,6 +224,7 @@ class FirmwareEmulator:
         self.received: list[tuple[float, bytes]] = []
         self.velocity_lines = 0
         self.garbage_lines = 0
+        self.resync_notices = 0
         self._factory_reset()
 
     # ---------------------------------------------------------------- device state
@@ -236,10 +270,37 @@ class FirmwareEmulator:
         with self._lock:
             self._silent = silent
 
-    def inject_resync(self) -> None:
-        """Start a chip re-sync at the next serial iteration (``n/tresynch`` + product IDs)."""
+    def inject_resync(self, duration: float | None = None) -> None:
+        """Let chip ``resync_chip`` drop out for ``duration`` [s] (``resync_duration``) from now.
+
+        The sensor task prints ``n/tresynch`` and the product IDs on every pass until the chip
+        answers again.
+        """
         with self._lock:
-            self._resync_announce = True
+            d = self.params.resync_duration if duration is None else duration
+            self._start_transient(self._t_now, d)
+
+    def set_chip_blind(self, chip: int, blind: bool = True, product_id: int = 0) -> None:
+        """Make chip 1..3 stop answering (reads ``product_id``: 0 line low, -1 line high).
+
+        The firmware then re-syncs on every pass until `set_chip_blind` (chip, False).
+        """
+        if chip not in (1, 2, 3):
+            raise ValueError(f'chip must be 1..3, got {chip!r}')
+        if product_id == protocol.EXPECTED_PRODUCT_ID:
+            raise ValueError('a blind chip must read another ID than a healthy one')
+        with self._lock:
+            if blind:
+                self._blind[chip] = product_id
+                self._schedule_pass(self._t_now)
+            else:
+                self._blind.pop(chip, None)
+
+    @property
+    def resyncing(self) -> bool:
+        """True while the sensor task re-syncs (the chips are not read)."""
+        with self._lock:
+            return self._next_pass is not None
 
     def restart(self) -> None:
         """Reset the board at the next serial iteration: boot banner, then firmware defaults.
@@ -280,9 +341,16 @@ class FirmwareEmulator:
                 self._t_poll = self._t_take = t
                 self._t_next = t + self._period()
             out = bytearray()
-            while self._t_next <= t:
-                out += self._serial_iteration(self._t_next)
-                self._t_next += self._period()
+            while True:
+                t_pass = self._next_pass if self._next_pass is not None else math.inf
+                if min(t_pass, self._t_next) > t:
+                    break
+                if t_pass <= self._t_next:  # the two tasks run on two cores: time order
+                    out += self._sensor_pass(t_pass)
+                else:
+                    out += self._serial_iteration(self._t_next)
+                    self._t_next += self._period()
+            self._t_now = max(self._t_now, t)
             return bytes(out)
 
     # ---------------------------------------------------------------- internals
@@ -296,11 +364,11 @@ class FirmwareEmulator:
     def _poll_chips(self, until: float) -> None:
         p = self.params
         dt = p.chip.poll_period
-        busy = self._resync_end is not None or self._boot_end is not None
+        booting = self._boot_end is not None
         while self._t_poll + dt <= until:
             mid = self._t_poll + 0.5 * dt
             self._t_poll += dt
-            if busy:
+            if booting or self._t_poll <= self._busy_until:  # re-syncing: chips not read
                 continue
             v_true = self._a_true @ np.asarray(self._motion(mid), dtype=np.float64)
             v_raw = self._truth_b * v_true / (1.0 - self._truth_a * self._truth_term(v_true))
@@ -312,7 +380,8 @@ class FirmwareEmulator:
             return v
         if self.params.truth_speed_term == SpeedTerm.ZERO.value:
             return np.zeros_like(v)
-        return np.abs(v)
+        magnitude: np.ndarray = np.abs(v)
+        return magnitude
 
     def _serial_iteration(self, t: float) -> bytes:
         out = bytearray()
@@ -331,6 +400,8 @@ class FirmwareEmulator:
                 return bytes(out)
             self._boot_end = None
             self._quantizer.reset()
+            if self._blind or self._transient_until is not None:
+                self._schedule_pass(t)  # the sensor task starts with a product-ID check
         self._poll_chips(t)
         counts = self._acc.copy()
         self._acc[:] = 0
@@ -338,14 +409,6 @@ class FirmwareEmulator:
         self._t_take = t
         if self._silent:
             return bytes(out)
-        if self._resync_announce:
-            self._resync_announce = False
-            self._start_resync(t, out)
-        if self._resync_end is not None and t >= self._resync_end:
-            self._resync_end = None
-            self._quantizer.reset()
-            pid = protocol.EXPECTED_PRODUCT_ID
-            out += f'{pid}/t{pid}/t{pid}\r\n'.encode('ascii')
         out += self._velocity_line(counts, dt)
         if self.params.garbage_probability > 0.0 and \
                 self._rng.random() < self.params.garbage_probability:
@@ -354,9 +417,47 @@ class FirmwareEmulator:
             out += self._handle(t, self._commands.popleft())
         return bytes(out)
 
-    def _start_resync(self, t: float, out: bytearray) -> None:
-        out += b'n/tresynch\r\n'
-        self._resync_end = t + self.params.resync_duration
+    # ---------------------------------------------------------------- chip re-sync
+
+    def _start_transient(self, t: float, duration: float) -> None:
+        end = t + duration
+        self._transient_until = max(end, self._transient_until or end)
+        self._schedule_pass(t)
+
+    def _schedule_pass(self, t: float) -> None:
+        """Check the product IDs at the next chip poll after ``t`` [s]."""
+        if self._next_pass is None:
+            dt = self.params.chip.poll_period
+            self._next_pass = max(self._t_poll, t - dt) + dt
+
+    def _chip_ids(self, t: float) -> tuple[int, int, int]:
+        ids = [protocol.EXPECTED_PRODUCT_ID] * protocol.N_CHIPS
+        for chip, pid in self._blind.items():
+            ids[chip - 1] = pid
+        if self._transient_until is not None:
+            if t < self._transient_until:
+                ids[self.params.resync_chip - 1] = self.params.resync_product_id
+            else:
+                self._transient_until = None
+        return ids[0], ids[1], ids[2]
+
+    def _sensor_pass(self, t: float) -> bytes:
+        """One sensor-task pass while re-syncing: check the IDs; notice and re-sync if bad."""
+        self._next_pass = None
+        if self._boot_end is not None:
+            return b''  # the board is restarting; the check resumes with the task
+        self._poll_chips(t)  # everything read before this pass counts
+        ids = self._chip_ids(t)
+        if all(pid == protocol.EXPECTED_PRODUCT_ID for pid in ids):
+            self._quantizer.reset()  # the chips were reset: carried sub-counts are gone
+            return b''
+        period = self.params.resync_pass_period
+        self._busy_until = t + period
+        self._next_pass = t + period
+        self.resync_notices += 1
+        if self._silent:
+            return b''
+        return f'n/tresynch\r\n{ids[0]} {ids[1]} {ids[2]}\r\n'.encode('ascii')
 
     def _velocity_line(self, counts: np.ndarray, dt: float) -> bytes:
         mm_per_count = self._m_per_count * protocol.MM_PER_M
@@ -396,11 +497,10 @@ class FirmwareEmulator:
         self._rx_bytes = max(0, self._rx_bytes - len(command) - 1)
         text = command.decode('ascii', 'replace').strip()
         if text == 'n':
-            if self._resyncs_left > 0:
+            if self._resyncs_left > 0:  # injected fault: a chip drops out, the reply is lost
                 self._resyncs_left -= 1
-                out = bytearray()
-                self._start_resync(t, out)
-                return bytes(out)
+                self._start_transient(t, self.params.resync_duration)
+                return b''
             return f'n/t{self.params.name}\r\n'.encode('ascii')
         if len(text) == 2 and text[0] == 'c' and text[1] in '0123':
             self.chip_mode = int(text[1])
@@ -650,32 +750,48 @@ class PtyEmulator:
 
 
 def _parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
+    defaults = EmulatorParams()
     parser = argparse.ArgumentParser(
         prog='velocity_sensor_emulator',
-        description='Emulate one optical velocity sensor on a pseudo-terminal. Prints the '
-                    'port path (open it as the node\'s "port" parameter); Ctrl-C or SIGTERM '
-                    'stops.')
-    parser.add_argument('--name', default='sensor_1', help='name answered to "n"')
-    parser.add_argument('--rate', type=float, default=120.0, help='output rate [Hz]')
-    parser.add_argument('--truth', default='',
-                        help='calibration YAML describing how the emulated chips read low')
-    parser.add_argument('--motion', choices=('still', 'constant', 'sine'), default='still')
-    parser.add_argument('--vx', type=float, default=0.0, help='[m/s] (amplitude for sine)')
-    parser.add_argument('--vy', type=float, default=0.0, help='[m/s] (amplitude for sine)')
-    parser.add_argument('--omega', type=float, default=0.0, help='[rad/s] (amplitude for sine)')
-    parser.add_argument('--frequency', type=float, default=0.5, help='sine frequency [Hz]')
-    parser.add_argument('--chip-off', type=int, action='append', default=[],
-                        choices=(1, 2, 3), help='chip lifted off the surface (repeatable)')
-    parser.add_argument('--noise', type=float, default=0.0, help='count noise std per poll')
-    parser.add_argument('--garbage', type=float, default=0.0,
-                        help='probability per line of a garbage line')
-    parser.add_argument('--resync-on-identify', type=int, default=0,
-                        help='answer the first N "n" commands with a chip re-sync')
-    parser.add_argument('--firmware-speed-term', default='signed_compat',
-                        choices=('signed_compat', 'abs'))
-    parser.add_argument('--duration', type=float, default=0.0, help='stop after [s]; 0 = never')
-    parser.add_argument('--link', default='', help='also create this symlink to the pty')
-    parser.add_argument('--seed', type=int, default=0)
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+        description='Emulate one optical velocity sensor on a pseudo-terminal, with the '
+                    'firmware\'s timing and chip re-sync output (see the module docstring of '
+                    'slip_velocity_sensor.core.emulator). Prints the port path (open it as the '
+                    'node\'s "port" parameter); Ctrl-C or SIGTERM stops.')
+    add = parser.add_argument
+    add('--name', default=defaults.name, help='name answered to "n"')
+    add('--rate', type=float, default=round(1.0 / defaults.output_period, 3),
+        help='mean output rate [Hz] (the firmware: about 143 Hz, periods of 6-8 ms)')
+    add('--jitter', type=float, default=round(defaults.period_jitter, 4),
+        help='uniform jitter of each output period, as a fraction of the mean period '
+             '(0.1429 at 143 Hz: 6-8 ms like the firmware; 0: a fixed period)')
+    add('--truth', default='',
+        help='calibration YAML describing how the emulated chips read low ("": ideal chips)')
+    add('--motion', choices=('still', 'constant', 'sine'), default='still',
+        help='true motion of the surface relative to the sensor')
+    add('--vx', type=float, default=0.0, help='[m/s] (amplitude for sine)')
+    add('--vy', type=float, default=0.0, help='[m/s] (amplitude for sine)')
+    add('--omega', type=float, default=0.0, help='[rad/s] (amplitude for sine)')
+    add('--frequency', type=float, default=0.5, help='sine frequency [Hz]')
+    add('--chip-off', type=int, action='append', default=[], choices=(1, 2, 3),
+        help='chip lifted off the surface: reads no motion (repeatable)')
+    add('--blind-chip', type=int, action='append', default=[], choices=(1, 2, 3),
+        help='chip that does not answer at all: the firmware prints its re-sync notices on '
+             'every pass and zero velocity lines (repeatable)')
+    add('--blind-id', type=int, default=0, choices=(0, -1),
+        help='product ID a blind chip reads: 0 (data line low) or -1 (pulled high)')
+    add('--noise', type=float, default=0.0, help='count noise std per poll [counts]')
+    add('--garbage', type=float, default=0.0, help='probability per line of a garbage line')
+    add('--resync-on-identify', type=int, default=0,
+        help='the first N "n" commands start a transient chip re-sync and lose their reply '
+             '(injected fault)')
+    add('--resync-duration', type=float, default=defaults.resync_duration,
+        help='length of a transient chip re-sync [s]')
+    add('--firmware-speed-term', default='signed_compat', choices=('signed_compat', 'abs'),
+        help='how the device applies the calibration a-term (shipped firmware: signed_compat)')
+    add('--duration', type=float, default=0.0, help='stop after [s]; 0 = never')
+    add('--link', default='', help='also create this symlink to the pty ("": none)')
+    add('--seed', type=int, default=0, help='seed of the emulator\'s random generator')
     return parser.parse_args(argv)
 
 
@@ -684,10 +800,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = _parse_args(argv)
     truth = cal_mod.load_calibration(args.truth) if args.truth else SensorCalibration()
     chip = replace(ChipModelParams(), count_noise_std=args.noise)
-    params = EmulatorParams(name=args.name, output_period=1.0 / args.rate, truth=truth,
+    params = EmulatorParams(name=args.name, output_period=1.0 / args.rate,
+                            period_jitter=args.jitter, truth=truth,
                             radius=truth.radius, chip=chip, chips_off=tuple(args.chip_off),
                             garbage_probability=args.garbage,
                             resync_on_identify=args.resync_on_identify,
+                            resync_duration=args.resync_duration,
                             firmware_speed_term=args.firmware_speed_term, seed=args.seed)
     motion: MotionFn = still
     if args.motion == 'constant':
@@ -697,7 +815,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     stop = threading.Event()
     for signum in (signal.SIGTERM, signal.SIGINT):
         signal.signal(signum, lambda *_: stop.set())
-    pty_emulator = PtyEmulator(FirmwareEmulator(params, motion))
+    emulator = FirmwareEmulator(params, motion)
+    for blind in args.blind_chip:
+        emulator.set_chip_blind(blind, product_id=args.blind_id)
+    pty_emulator = PtyEmulator(emulator)
     if args.link:
         if os.path.lexists(args.link):
             os.remove(args.link)

@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: Apache-2.0
 """Rigid-body fusion of the three optical chips with one-chip-off outlier rejection (ROS-free).
 
-Model (hardware_protocols spec §3.4). Chip i sits at radius d and angle φ_i in the sensor
+Model (hardware_protocols §3.4). Chip i sits at radius d and angle φ_i in the sensor
 frame; its x axis is tangential (counter-clockwise) and its y axis radial (outward). For a
 surface moving with twist (vx, vy, ω) relative to the sensor, chip i reads::
 

@@ -2,7 +2,7 @@
 """Identify handshake and calibration upload as a time-driven state machine (ROS-free).
 
 The reference host sent ``n`` and read until a name arrived: a ``resynch`` reply made it skip
-the port for good, and a silent port hung it forever (hardware_protocols spec §3.5, HW-6).
+the port for good, and a silent port hung it forever (hardware_protocols §3.5, HW-6).
 `Handshake` instead is driven by the caller with explicit time and parsed lines::
 
     hs = Handshake('sensor_1', HandshakeParams(), init_commands=cmds, port=url)
@@ -17,9 +17,11 @@ Behaviour:
 * ``n`` is sent; an attempt lasts ``timeout`` seconds; after ``retries`` attempts without the
   expected name the handshake fails with `HandshakeFailure.NO_ANSWER` (nothing received) or
   `HandshakeFailure.NO_NAME` (data, but no name reply: wrong baud rate or firmware).
-* ``n/tresynch``: the firmware is re-syncing a chip. Wait for the product-ID line that ends the
-  re-sync (or the attempt timeout) and ask again; each re-ask is a new attempt, so a sensor that
-  re-syncs forever (missing chip) fails with `HandshakeFailure.RESYNC_LOOP`.
+* ``n/tresynch``: the firmware is re-syncing a chip. A name reply is still accepted; without one,
+  wait until the re-sync ended (a velocity line after a serial period free of notices, see
+  `resync.ResyncTracker`; the firmware prints no end line) or the attempt timed out, and ask
+  again. Each re-ask is a new attempt, so a sensor whose reply never comes while it re-syncs
+  fails with `HandshakeFailure.RESYNC_LOOP`.
 * An ESP32 boot banner (the board restarted, e.g. on port open): wait until it streams again
   (or the attempt timeout), then ask again as a new attempt. During the upload it restarts the
   handshake this way, because the device lost the values already sent.
@@ -33,12 +35,13 @@ from __future__ import annotations
 import queue
 from dataclasses import dataclass, field
 from enum import Enum
-from typing import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 
 from slip_velocity_sensor.core import protocol
 from slip_velocity_sensor.core.protocol import (BadLine, BootLine, LineParser, NameLine,
                                                 ParsedLine, ProductIdLine, ResyncLine, TextLine,
                                                 VelocityLine)
+from slip_velocity_sensor.core.resync import ResyncTracker
 
 
 @dataclass(frozen=True)
@@ -97,7 +100,7 @@ class HandshakeResult:
         name: Name the sensor answered.
         port: Port path or URL.
         attempts: ``n`` attempts used (1 = first try).
-        resyncs: ``resynch`` notices seen.
+        resyncs: Chip re-syncs seen (a run of ``resynch`` notices counts once).
         boots: Boot banners seen.
         commands_sent: Commands written, including every ``n``.
         init_commands: Number of initialisation commands uploaded.
@@ -161,7 +164,7 @@ class Handshake:
         self._lines = 0
         self._velocity_lines = 0
         self._bad_lines = 0
-        self._resyncs = 0
+        self._resync = ResyncTracker()
         self._boots = 0
         self._text_replies = 0
 
@@ -234,18 +237,20 @@ class Handshake:
         self._lines += 1
         if isinstance(line, VelocityLine):
             self._velocity_lines += 1
+            resync_over = self._resync.on_velocity_line(t)
             if self.state is HandshakeState.WAITING_BOOT:
                 self._next_attempt(t, HandshakeFailure.NO_NAME)
+            elif self.state is HandshakeState.WAITING_RESYNC and resync_over:
+                self._next_attempt(t, HandshakeFailure.RESYNC_LOOP)
         elif isinstance(line, NameLine):
             self._on_name(line.name)
         elif isinstance(line, ResyncLine):
-            self._resyncs += 1
+            self._resync.on_notice(t)
             if self.state is HandshakeState.IDENTIFYING:
                 self.state = HandshakeState.WAITING_RESYNC
                 self._queue.clear()
         elif isinstance(line, ProductIdLine):
-            if self.state is HandshakeState.WAITING_RESYNC:  # re-sync finished: ask again
-                self._next_attempt(t, HandshakeFailure.RESYNC_LOOP)
+            self._resync.on_product_ids(line.ids)
         elif isinstance(line, BootLine):
             self._boots += 1
             if self.state is HandshakeState.UPLOADING:
@@ -287,7 +292,7 @@ class Handshake:
         return True
 
     def _timeout_failure(self) -> HandshakeFailure:
-        if self.state is HandshakeState.WAITING_RESYNC or self._resyncs > 0:
+        if self.state is HandshakeState.WAITING_RESYNC or self._resync.episodes > 0:
             return HandshakeFailure.RESYNC_LOOP
         return HandshakeFailure.NO_NAME if self._lines else HandshakeFailure.NO_ANSWER
 
@@ -295,8 +300,9 @@ class Handshake:
         tried = (f'after {self._attempt} attempt(s) of {self.params.timeout:g} s '
                  f'({self._sent} command(s) sent)')
         if failure is HandshakeFailure.RESYNC_LOOP:
-            return (f'no name reply {tried}: the sensor kept re-syncing ({self._resyncs} resynch '
-                    'notices); a chip is missing, unplugged or dirty')
+            return (f'no name reply {tried}: the sensor kept re-syncing '
+                    f'({self._resync.notices} resynch notices); a chip is missing, unplugged '
+                    'or dirty')
         if failure is HandshakeFailure.NO_ANSWER:
             return (f'no answer to "n" {tried}; nothing was received: is the sensor powered, '
                     'the port right and the baud rate 115200?')
@@ -313,7 +319,7 @@ class Handshake:
         self.state = HandshakeState.DONE
         self.result = HandshakeResult(
             name=self._name, port=self.port, attempts=self._attempt,
-            resyncs=self._resyncs, boots=self._boots, commands_sent=self._sent,
+            resyncs=self._resync.episodes, boots=self._boots, commands_sent=self._sent,
             init_commands=len(self.init_commands), text_replies=self._text_replies,
             started=self._started, finished=t)
 

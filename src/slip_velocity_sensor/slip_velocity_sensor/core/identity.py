@@ -19,7 +19,7 @@ import os
 import re
 import tempfile
 from pathlib import Path
-from typing import Mapping, Sequence
+from collections.abc import Mapping, Sequence
 
 _SAFE = re.compile(r'[^A-Za-z0-9_.\-]')
 
@@ -121,7 +121,7 @@ class NameClaim:
                     f'(claimed first by {holder or "another process"})') from exc
             raise
         os.ftruncate(fd, 0)
-        os.write(fd, f'{self.port} pid={os.getpid()}\n'.encode('utf-8'))
+        os.write(fd, f'{self.port} pid={os.getpid()}\n'.encode())
         self._fd = fd
 
     def release(self) -> None:

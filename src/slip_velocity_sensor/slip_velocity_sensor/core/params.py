@@ -1,13 +1,15 @@
 # SPDX-License-Identifier: Apache-2.0
-"""Parameters of the ``velocity_sensor`` lifecycle node (ros_interfaces spec §6.3), ROS-free.
+"""Parameters of the ``velocity_sensor`` lifecycle node (ros_interfaces §6.3), ROS-free.
 
 One frozen dataclass; nested groups flatten with ``.`` (``handshake.timeout``,
 ``calibration.chip_1.x.a``). `slip_cell_common.core.param_schema` validates and rebuilds it;
-``config/velocity_sensor.yaml`` must list every field. Beyond the spec table:
-``max_integration_dt``, ``chip_mode_settle`` and ``resync_timeout`` (host processing, see
-`session.SessionParams`), ``lock_dir`` (name claim, `identity.NameClaim`), ``reconnect.*``
-(back-off of reopening the port and of re-initialising the device, `driver.SensorDriver`) and
-``frames.tf_prefix`` (the shared frame prefix of the cell, also set by ``cell.yaml``).
+``config/velocity_sensor.yaml`` must list every field. The host-processing settings are the
+session's own `session.SessionParams`, flattened into this level (``stale_after``,
+``expected_rate``, ...). Beyond the spec table: ``max_integration_dt``, ``chip_mode_settle``
+and ``resync_timeout`` (of the session), ``lock_dir`` (name claim, `identity.NameClaim`),
+``reconnect.*`` (back-off of reopening the port and of re-initialising the device,
+`driver.SensorDriver`) and ``frames.tf_prefix`` (the shared frame prefix of the cell, also set
+by ``cell.yaml``).
 
 ``calibration.file`` defaults to ``config/calibration_{expected_name}.yaml``: the
 placeholders ``{expected_name}`` and ``{finger}`` are substituted, and a relative path refers to
@@ -22,7 +24,9 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass, field
 
-from slip_cell_common.core.param_schema import ParameterError, check_value, specs
+from slip_cell_common.core import names
+from slip_cell_common.core.param_schema import (ParameterError, check_value, flatten,
+                                                   flattened_group, specs)
 from slip_cell_common.core.serial_transport import ReconnectParams
 from slip_velocity_sensor.core import protocol
 from slip_velocity_sensor.core.calibration import CalibrationParams
@@ -57,7 +61,7 @@ class VelocitySensorParams:
         'range': (1, 2), 'read_only': True, 'description': 'finger number; selects topic names'})
     expected_name: str = field(default='sensor_1', metadata={
         'read_only': True, 'description': 'name the sensor must answer to "n"'})
-    frame_id: str = field(default='vel_sensor_1', metadata={
+    frame_id: str = field(default=names.vel_sensor_frame(1), metadata={
         'read_only': True, 'description': 'frame of the published samples (without tf_prefix)'})
     frames: FrameParams = field(default_factory=FrameParams)
     handshake: HandshakeParams = field(default_factory=HandshakeParams)
@@ -68,24 +72,7 @@ class VelocitySensorParams:
         'unit': 'm', 'range': (0.001, 0.5),
         'description': 'chip radius uploaded as mm (a calibration file overrides it)'})
     calibration: CalibrationParams = field(default_factory=CalibrationParams)
-    stale_after: float = field(default=0.050, metadata={
-        'unit': 's', 'range': (0.001, 10.0),
-        'description': 'a sample older than this is stale for the slip controllers'})
-    expected_rate: float = field(default=120.0, metadata={
-        'unit': 'Hz', 'range': (1.0, 10000.0), 'description': 'nominal line rate'})
-    rate_tolerance: float = field(default=0.1, metadata={
-        'unit': '-', 'range': (0.0, 1.0), 'description': 'allowed relative rate deviation'})
-    integrate_pose: bool = field(default=True, metadata={
-        'description': 'integrate x, y, theta from valid fused samples'})
-    max_integration_dt: float = field(default=0.050, metadata={
-        'unit': 's', 'range': (0.001, 1.0),
-        'description': 'cap on the integration step after gaps between samples'})
-    chip_mode_settle: float = field(default=0.025, metadata={
-        'unit': 's', 'range': (0.0, 1.0),
-        'description': 'samples are invalid this long after a chip-mode command'})
-    resync_timeout: float = field(default=0.2, metadata={
-        'unit': 's', 'range': (0.0, 10.0),
-        'description': 'longest a chip re-sync keeps samples invalid without its end line'})
+    session: SessionParams = flattened_group(SessionParams)
     reconnect: ReconnectParams = field(default_factory=ReconnectParams)
     lock_dir: str = field(default='', metadata={
         'read_only': True,
@@ -93,7 +80,8 @@ class VelocitySensorParams:
 
     def validate(self) -> None:
         """Raise `ParameterError` listing every invalid field."""
-        problems = [p for s in specs(type(self)) for p in check_value(s, _get(self, s.name))]
+        values = flatten(self)
+        problems = [p for s in specs(type(self)) for p in check_value(s, values[s.name])]
         if not protocol.is_valid_name(self.expected_name):
             problems.append(f'expected_name {self.expected_name!r} is not a sensor name')
         match = _FINGER_FRAME.fullmatch(self.frame_id)
@@ -116,18 +104,3 @@ class VelocitySensorParams:
         """``calibration.file`` with ``{expected_name}`` and ``{finger}`` substituted."""
         return (self.calibration.file.replace('{expected_name}', self.expected_name)
                 .replace('{finger}', str(self.finger)))
-
-    def session_params(self) -> SessionParams:
-        """The host-processing subset."""
-        return SessionParams(stale_after=self.stale_after, expected_rate=self.expected_rate,
-                             rate_tolerance=self.rate_tolerance,
-                             integrate_pose=self.integrate_pose,
-                             max_integration_dt=self.max_integration_dt,
-                             chip_mode_settle=self.chip_mode_settle,
-                             resync_timeout=self.resync_timeout)
-
-
-def _get(instance: object, dotted: str) -> object:
-    for part in dotted.split('.'):
-        instance = getattr(instance, part)
-    return instance

@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: Apache-2.0
 """Stop-to-stop calibration procedure as data, and synthetic recordings of it (ROS-free).
 
-Procedure (hardware_protocols spec §3.7): a flat surface slides under the sensor between two
+Procedure (hardware_protocols §3.7): a flat surface slides under the sensor between two
 hard stops ``distance`` apart (100 mm). With the chip under test in single-chip mode, an
 operator moves the surface stop-to-stop on timed prompts: one traverse in each direction at
 each of 6 speed levels (≈ 10, 5, 3, 2, 1 and < 1 s per traverse), with pauses of 15, 15, 10,
@@ -228,17 +228,6 @@ def traverse_position(tau: NDArray[np.float64], duration: float, distance: float
     raise ValueError(f'unknown profile {profile!r}')
 
 
-def true_velocity(t: NDArray[np.float64], steps: tuple[ProcedureStep, ...], distance: float,
-                  profile: str = 'trapezoid', ramp_fraction: float = 0.1) -> NDArray[np.float64]:
-    """True surface velocity along the tested axis at times ``t`` [s] [m/s]."""
-    v = np.zeros_like(t, dtype=np.float64)
-    for step in steps:
-        if step.kind is StepKind.TRAVERSE:
-            v += step.direction * traverse_velocity(t - step.start, step.duration, distance,
-                                                    profile, ramp_fraction)
-    return v
-
-
 def true_position(t: NDArray[np.float64], steps: tuple[ProcedureStep, ...], distance: float,
                   profile: str = 'trapezoid', ramp_fraction: float = 0.1) -> NDArray[np.float64]:
     """True surface position along the tested axis at times ``t`` [s] [m] (0 = near stop)."""
@@ -298,7 +287,7 @@ def synthesize_recording(truth: AxisCalibration, procedure: ProcedureParams | No
     v_true = np.diff(x_true) / poll
     v_raw = cal_mod.raw_speed(v_true, truth, s.truth_speed_term)
     counts = quantize_series(v_raw * poll, s.chip, rng)
-    t_out = np.arange(1, int(total / s.output_period) + 1) * s.output_period
+    t_out = np.arange(1, int(total / s.output_period) + 1, dtype=np.float64) * s.output_period
     # Counts of every poll finished before an output instant belong to that line.
     cum = np.concatenate(([0], np.cumsum(counts)))
     idx = np.searchsorted(poll_end, t_out, side='right')

@@ -1,13 +1,18 @@
 # SPDX-License-Identifier: Apache-2.0
-"""Line protocol of the optical velocity sensor (hardware_protocols spec §3.3), ROS-free.
+"""Line protocol of the optical velocity sensor (hardware_protocols §3.3), ROS-free.
 
 Device → host, ASCII lines ending in ``\\r\\n``; the field separator is the two characters
 ``/t`` (slash, letter t), **not** a TAB:
 
 * ``v/t<vx>/t<vy>/t<omega>``: velocity of the surface relative to the pad, vx and vy in mm/s,
   omega in rad/s, 4 decimals (sensor frame in fused mode, chip frame in single-chip mode).
-* ``n/t<name>``: reply to ``n``; ``n/tresynch`` announces that a chip lost sync, followed by one
-  line carrying the three product IDs once the re-sync is done.
+* ``n/t<name>``: reply to ``n``.
+* ``n/tresynch`` (a bare ``resynch`` is accepted too): a chip did not answer its product-ID
+  read. The firmware prints it, then one line with the three product IDs as signed decimals
+  separated by single spaces (``0 49 49``: chip 1 reads 0, data line low; ``-1 49 49``: data
+  line pulled high; 49 = 0x31 is a healthy chip), and only then re-syncs. It repeats the pair
+  on every sensor pass (about every 6 ms) while a chip stays out and prints nothing when the
+  re-sync worked: the end of a re-sync is the absence of notices (`resync.ResyncTracker`).
 * Anything else is free text (command replies, start-up notices, ESP32 boot banner).
 
 Host → device: ``n`` (identify), ``c<k>`` (chip mode), ``k<i><j><value>`` (calibration).
@@ -16,8 +21,10 @@ This module is the only place that knows device units: parsed values leave it in
 (m/s, rad/s) and command builders take SI arguments (m, 1/(m/s)) and format device units
 (mm, 1/(mm/s)). Variables holding device units carry the unit in their name.
 
-The product-ID line format is not specified beyond "three values"; it is accepted as three
-decimal or ``0x`` hex integers separated by ``/t``, spaces, commas or semicolons.
+Numbers of a velocity line are accepted only in the firmware's exact format (Arduino
+``print(value, 4)``): optional minus, integer digits without leading zeros, a point and exactly
+four decimals (``12.3456``, ``-0.0000``). The link has no checksum, so a number that lost or
+gained a digit (``12.345``, ``1.23456``, ``12.``) is a corrupted line, never a value.
 """
 from __future__ import annotations
 
@@ -37,12 +44,15 @@ MAX_CHIP_MODE = N_CHIPS
 #: Product ID register value of a healthy chip (PAW3204-compatible register 0x00).
 EXPECTED_PRODUCT_ID = 0x31
 
-_NUMBER = re.compile(r'[+-]?(?:\d+(?:\.\d*)?|\.\d+)')
+#: A velocity field as the firmware prints it: ``-?<int>.<4 decimals>``, no exponent or sign +.
+_NUMBER = re.compile(r'-?(?:0|[1-9][0-9]*)\.[0-9]{4}')
 _NAME = re.compile(r'[A-Za-z0-9_.\-]{1,32}')
-_ID = r'(?:0[xX][0-9A-Fa-f]{1,2}|\d{1,3})'
-_PRODUCT_IDS = re.compile(rf'({_ID})(?:/t|[ ,;])+({_ID})(?:/t|[ ,;])+({_ID})')
+_ID = r'(-?[0-9]{1,3})'
+#: The product-ID line after a re-sync notice: three signed decimals, single spaces.
+_PRODUCT_IDS = re.compile(rf'{_ID} {_ID} {_ID}')
 _BOOT_BANNER = re.compile(r'(?:ESP-ROM:|rst:0x[0-9A-Fa-f]+ )')
 _RESYNC_NAME = 'resynch'
+_RESYNC_LINES = ('n/t' + _RESYNC_NAME, _RESYNC_NAME)
 
 
 @dataclass(frozen=True)
@@ -91,12 +101,19 @@ class NameLine:
 
 @dataclass(frozen=True, slots=True)
 class ResyncLine:
-    """``n/tresynch``: a chip lost sync; the firmware is re-initialising the chips."""
+    """``n/tresynch``: a chip did not answer; the firmware re-syncs it after the ID line.
+
+    Repeated on every sensor pass while the chip stays out; no line marks the end.
+    """
 
 
 @dataclass(frozen=True, slots=True)
 class ProductIdLine:
-    """The three chip product IDs printed when a re-sync finished (0x31 each when healthy)."""
+    """The three product IDs that made the firmware re-sync, printed right after ``resynch``.
+
+    Signed as the firmware prints them: 0x31 (49) is a healthy chip, 0 a chip holding its data
+    line low (not answering), -1 a data line pulled high.
+    """
 
     ids: tuple[int, int, int]
 
@@ -271,11 +288,11 @@ class LineParser:
             return self._bad(line, 'control characters')
         if text.startswith('v/t'):
             return self._velocity(line, text)
+        if text in _RESYNC_LINES:
+            self._c['resync'] += 1
+            return ResyncLine()
         if text.startswith('n/t'):
             name = text[3:]
-            if name == _RESYNC_NAME:
-                self._c['resync'] += 1
-                return ResyncLine()
             if _NAME.fullmatch(name):
                 self._c['name'] += 1
                 return NameLine(name)
@@ -286,8 +303,8 @@ class LineParser:
         match = _PRODUCT_IDS.fullmatch(text)
         if match:
             self._c['product_ids'] += 1
-            ids = tuple(int(g, 0) if g[:2].lower() == '0x' else int(g, 10) for g in match.groups())
-            return ProductIdLine((ids[0], ids[1], ids[2]))
+            first, second, third = (int(g, 10) for g in match.groups())
+            return ProductIdLine((first, second, third))
         if _BOOT_BANNER.match(text):
             self._c['boot'] += 1
             return BootLine(text)
@@ -300,7 +317,7 @@ class LineParser:
             return self._bad(line, f'velocity line with {len(fields)} fields, expected 3')
         for f in fields:
             if not _NUMBER.fullmatch(f):
-                return self._bad(line, f'velocity field {f!r} is not a decimal number')
+                return self._bad(line, f'velocity field {f!r} is not a 4-decimal number')
         vx_mm_s, vy_mm_s, omega = float(fields[0]), float(fields[1]), float(fields[2])
         if not (math.isfinite(vx_mm_s) and math.isfinite(vy_mm_s) and math.isfinite(omega)):
             return self._bad(line, 'non-finite velocity')

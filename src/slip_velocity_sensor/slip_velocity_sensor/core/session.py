@@ -12,16 +12,20 @@ Validity (requirement HW-10):
   **chip frame** and a stale fused ω. The sample therefore has ``valid = False``, NaN twist
   and ω, and the chip reading in `Sample.chip_vx` / `Sample.chip_vy` (for the chips topic).
 * For ``chip_mode_settle`` seconds after a mode command the mode of arriving lines is unknown:
-  invalid. Likewise between a ``resynch`` notice and the product-ID line that ends it (at most
-  ``resync_timeout``), after a boot banner (device restarted: calibration lost, until the node
+  invalid. Likewise after a boot banner (device restarted: calibration lost, until the node
   re-initialises) and after a different name showed up on the port.
+* Chip re-sync: from a ``resynch`` notice on, the firmware's lines carry no (or partial)
+  motion although they look like valid zeros. Samples stay invalid until a velocity line
+  follows a full serial period without a new notice (`resync.ResyncTracker`); there is no
+  end-of-re-sync line and no timeout that would declare the chip healthy. The ``chips``
+  diagnostics report the re-sync (WARN, ERROR once it lasts longer than ``resync_timeout``,
+  naming the chip that does not answer) and return to OK when the notices stop.
 
-Pose integration (host side, sensor frame, like the reference): ``x += vx·dt``, ``y += vy·dt``,
-``θ += ω·dt`` over consecutive valid samples with ``dt`` from acquisition stamps. ``dt <= 0``
-(several lines in one USB read carry one stamp) is skipped without moving the time anchor, so
-the next sample covers the whole interval and no time is lost; ``dt`` is capped at
-``max_integration_dt`` after gaps (lost lines, link stalls); a backwards jump larger than the cap
-re-anchors (clock reset without `reset`).
+Pose integration (host side, sensor frame, like the reference): every valid fused line adds
+``v · period`` over its own firmware period, estimated from acquisition stamps; lines read
+together after a reader stall share the stall's time instead of losing it
+(`pose_integration.PoseIntegrator`; ``max_integration_dt`` bounds what a gap without lines
+adds, 1/``expected_rate`` is the nominal period).
 """
 from __future__ import annotations
 
@@ -31,10 +35,12 @@ from dataclasses import dataclass, field
 
 from slip_cell_common.core.monitors import AgeMonitor, FrequencyMonitor, Level, Report
 from slip_velocity_sensor.core import protocol
+from slip_velocity_sensor.core.pose_integration import PoseIntegrator
 from slip_velocity_sensor.core.protocol import (BadLine, BootLine, LineParser, LineSplitter,
                                                 NameLine, ParsedLine, ParserCounters,
                                                 ProductIdLine, ProtocolLimits, ResyncLine,
                                                 TextLine, VelocityLine)
+from slip_velocity_sensor.core.resync import ResyncTracker, describe_product_ids
 
 NAN = math.nan
 
@@ -46,21 +52,23 @@ class SessionParams:
     stale_after: float = field(default=0.050, metadata={
         'unit': 's', 'range': (0.001, 10.0),
         'description': 'a valid sample older than this is stale for the slip controllers'})
-    expected_rate: float = field(default=120.0, metadata={
-        'unit': 'Hz', 'range': (1.0, 10000.0), 'description': 'nominal line rate'})
-    rate_tolerance: float = field(default=0.1, metadata={
-        'unit': '-', 'range': (0.0, 1.0), 'description': 'allowed relative rate deviation'})
+    expected_rate: float = field(default=146.0, metadata={
+        'unit': 'Hz', 'range': (1.0, 10000.0),
+        'description': 'centre of the line-rate window; 1/expected_rate is the nominal period'})
+    rate_tolerance: float = field(default=0.15, metadata={
+        'unit': '-', 'range': (0.0, 1.0),
+        'description': 'allowed relative rate deviation (146 Hz ±15 %: 124-168 Hz)'})
     integrate_pose: bool = field(default=True, metadata={
         'description': 'integrate x, y, theta from valid fused samples'})
     max_integration_dt: float = field(default=0.050, metadata={
         'unit': 's', 'range': (0.001, 1.0),
-        'description': 'cap on the integration step after gaps between samples'})
+        'description': 'most time one line covers after a gap without lines'})
     chip_mode_settle: float = field(default=0.025, metadata={
         'unit': 's', 'range': (0.0, 1.0),
         'description': 'samples are invalid this long after a chip-mode command'})
     resync_timeout: float = field(default=0.2, metadata={
         'unit': 's', 'range': (0.0, 10.0),
-        'description': 'longest a chip re-sync keeps samples invalid without its end line'})
+        'description': 'a chip re-sync lasting longer than this is an ERROR (chip missing)'})
 
 
 @dataclass(frozen=True, slots=True)
@@ -118,6 +126,8 @@ class SessionDiagnostics:
     valid_samples: int
     counters: ParserCounters
     resync_active: bool
+    resyncs: int
+    resync_duration: float
     product_ids: tuple[int, ...]
     device_restarts: int
     name_conflicts: int
@@ -158,8 +168,7 @@ class SensorSession:
         self._chip_mode = 0
         self._pending_mode: int | None = None
         self._mode_settled_at = -math.inf
-        self._resync_until: float | None = None
-        self._product_ids: tuple[int, ...] = ()
+        self._resync = ResyncTracker()
         self._device_restarts = 0
         self._booting = False
         self._identity_ok = True
@@ -169,11 +178,8 @@ class SensorSession:
         self._link_error = ''
         self._samples = 0
         self._valid_samples = 0
-        self._dt_skipped = 0
-        self._dt_capped = 0
-        self._clock_jumps = 0
-        self._x = self._y = self._theta = 0.0
-        self._t_prev: float | None = None
+        self._pose = PoseIntegrator(1.0 / self.params.expected_rate,
+                                    self.params.max_integration_dt)
         self._latest: Sample | None = None
         self._lock = threading.RLock()
 
@@ -200,14 +206,14 @@ class SensorSession:
             self._chip_mode = chip_mode
             self._pending_mode = None
             self._link_error = ''
-            self._t_prev = None
+            self._pose.reanchor()
 
     def link_lost(self, message: str) -> None:
         """Record a link failure (port named in ``message``); samples stop until re-init."""
         with self._lock:
             self._link_error = message
             self._initialised = False
-            self._t_prev = None
+            self._pose.reanchor()
             self.splitter.clear()
 
     def update_params(self, params: SessionParams) -> None:
@@ -217,6 +223,7 @@ class SensorSession:
             self._rate.expected_hz = params.expected_rate
             self._rate.tolerance = params.rate_tolerance
             self._age.stale_after_s = params.stale_after
+            self._pose.configure(1.0 / params.expected_rate, params.max_integration_dt)
 
     def chip_mode_sent(self, mode: int, t: float) -> None:
         """Record that ``c<mode>`` was written at ``t`` [s] (see `protocol.chip_mode_command`).
@@ -227,25 +234,26 @@ class SensorSession:
         with self._lock:
             self._pending_mode = mode
             self._mode_settled_at = t + self.params.chip_mode_settle
-            self._t_prev = None
+            self._pose.reanchor()
 
     def reset_pose(self) -> None:
         """Zero the integrated x, y, θ (the time anchor is kept)."""
         with self._lock:
-            self._x = self._y = self._theta = 0.0
+            self._pose.reset_pose()
 
     def reset(self) -> None:
         """Forget all time-dependent state (call when the clock jumped backwards).
 
-        Pose, latest sample, rate and age monitors are reset; counters are kept.
+        Pose, latest sample, rate and age monitors are reset; counters are kept, and so is an
+        open chip re-sync (it ends by the device's lines, not by time).
         """
         with self._lock:
-            self._x = self._y = self._theta = 0.0
-            self._t_prev = None
+            self._pose.reset_pose()
+            self._pose.reanchor()
             self._latest = None
             self._rate = FrequencyMonitor(self.params.expected_rate, self.params.rate_tolerance)
             self._age = AgeMonitor(self.params.stale_after)
-            self._resync_until = None
+            self._resync.forget_times()
             if self._pending_mode is not None:
                 self._mode_settled_at = -math.inf
 
@@ -281,10 +289,9 @@ class SensorSession:
         if isinstance(parsed, BadLine):
             self._last_bad_reason = parsed.reason
         elif isinstance(parsed, ResyncLine):
-            self._resync_until = t + self.params.resync_timeout
+            self._resync.on_notice(t)
         elif isinstance(parsed, ProductIdLine):
-            self._product_ids = parsed.ids
-            self._resync_until = None
+            self._resync.on_product_ids(parsed.ids)
         elif isinstance(parsed, BootLine):
             if not self._booting:  # a banner has several lines: count the restart once
                 self._device_restarts += 1
@@ -292,12 +299,12 @@ class SensorSession:
             self._initialised = False
             self._chip_mode = 0  # firmware default after a restart
             self._pending_mode = None
-            self._t_prev = None
+            self._pose.reanchor()
         elif isinstance(parsed, NameLine):
             if self.expected_name and parsed.name != self.expected_name:
                 self._name_conflicts += 1
                 self._identity_ok = False
-                self._t_prev = None
+                self._pose.reanchor()
         elif isinstance(parsed, TextLine):
             self._last_text = parsed.text
         return None
@@ -309,46 +316,27 @@ class SensorSession:
         self._rate.tick(t)
         if self._pending_mode is not None and t >= self._mode_settled_at:
             self._chip_mode, self._pending_mode = self._pending_mode, None
-        if self._resync_until is not None and t > self._resync_until:
-            self._resync_until = None
+        resync_free = self._resync.on_velocity_line(t)
         usable = (self._initialised and self._identity_ok and self._pending_mode is None
-                  and self._resync_until is None)
+                  and resync_free)
         mode = -1 if self._pending_mode is not None else self._chip_mode
         if not usable or mode != 0:
-            self._t_prev = None
+            self._pose.reanchor()
             chip_vx = line.vx if usable and mode > 0 else NAN
             chip_vy = line.vy if usable and mode > 0 else NAN
-            sample = Sample(t, NAN, NAN, NAN, self._x, self._y, self._theta, mode, False,
+            pose = self._pose
+            sample = Sample(t, NAN, NAN, NAN, pose.x, pose.y, pose.theta, mode, False,
                             chip_vx, chip_vy)
             self._latest = sample
             return sample
+        pose = self._pose
         if p.integrate_pose:
-            self._integrate(t, line)
+            pose.add(t, line.vx, line.vy, line.omega)
         self._valid_samples += 1
         self._age.tick(t)
-        sample = Sample(t, line.vx, line.vy, line.omega, self._x, self._y, self._theta, 0, True)
+        sample = Sample(t, line.vx, line.vy, line.omega, pose.x, pose.y, pose.theta, 0, True)
         self._latest = sample
         return sample
-
-    def _integrate(self, t: float, line: VelocityLine) -> None:
-        cap = self.params.max_integration_dt
-        if self._t_prev is None:
-            self._t_prev = t
-            return
-        dt = t - self._t_prev
-        if dt <= 0.0:
-            self._dt_skipped += 1
-            if dt < -cap:  # the clock went back: re-anchor instead of stalling
-                self._clock_jumps += 1
-                self._t_prev = t
-            return
-        if dt > cap:
-            self._dt_capped += 1
-            dt = cap
-        self._x += line.vx * dt
-        self._y += line.vy * dt
-        self._theta += line.omega * dt
-        self._t_prev = t
 
     def stale_marker(self, t: float) -> Sample | None:
         """An invalid sample stamped ``t`` when the stream went stale; None otherwise.
@@ -363,8 +351,8 @@ class SensorSession:
             latest = self._latest
             if latest is None or not latest.valid or t - latest.stamp <= self.params.stale_after:
                 return None
-            marker = Sample(t, NAN, NAN, NAN, self._x, self._y, self._theta, self.chip_mode,
-                            False)
+            pose = self._pose
+            marker = Sample(t, NAN, NAN, NAN, pose.x, pose.y, pose.theta, self.chip_mode, False)
             self._latest = marker
             return marker
 
@@ -422,10 +410,11 @@ class SensorSession:
             calibration_uploaded=self._calibration_uploaded, speed_term=self._speed_term,
             chip_mode=self.chip_mode, rate_hz=self.rate_hz(t), age=self.age(t),
             stale=self.is_stale(t), samples=self._samples, valid_samples=self._valid_samples,
-            counters=self.parser.counters, resync_active=self._resync_until is not None,
-            product_ids=self._product_ids, device_restarts=self._device_restarts,
-            name_conflicts=self._name_conflicts, dt_skipped=self._dt_skipped,
-            dt_capped=self._dt_capped, clock_jumps=self._clock_jumps,
+            counters=self.parser.counters, resync_active=self._resync.active,
+            resyncs=self._resync.episodes, resync_duration=self._resync.duration(t),
+            product_ids=self._resync.product_ids, device_restarts=self._device_restarts,
+            name_conflicts=self._name_conflicts, dt_skipped=self._pose.skipped,
+            dt_capped=self._pose.capped, clock_jumps=self._pose.clock_jumps,
             last_bad_reason=self._last_bad_reason, last_text=self._last_text,
             link_error=self._link_error)
 
@@ -459,15 +448,22 @@ class SensorSession:
                                      ('dt_capped', str(d.dt_capped)))
         rate = Report(rate.level, rate.message, rate_values)
 
-        ids_ok = all(i == protocol.EXPECTED_PRODUCT_ID for i in d.product_ids)
-        chip_values = (('chip_mode', str(d.chip_mode)), ('resyncs', str(c.resync)),
+        chip_values = (('chip_mode', str(d.chip_mode)), ('resyncs', str(d.resyncs)),
+                       ('resync_notices', str(c.resync)),
                        ('resync_active', str(d.resync_active)),
-                       ('product_ids', ' '.join(f'0x{i:02x}' for i in d.product_ids)))
-        if not ids_ok:
-            chips = Report(Level.ERROR, 'chip product id mismatch after re-sync', chip_values)
-        elif d.resync_active or d.chip_mode != 0:
-            chips = Report(Level.WARN, 'chip re-sync in progress' if d.resync_active
-                           else f'single-chip mode {d.chip_mode}: twist invalid', chip_values)
+                       ('resync_duration_s', f'{d.resync_duration:.3f}'),
+                       ('product_ids', ' '.join(str(i) for i in d.product_ids)))
+        if d.resync_active:
+            failed = describe_product_ids(d.product_ids, protocol.EXPECTED_PRODUCT_ID)
+            if d.resync_duration > self.params.resync_timeout:
+                chips = Report(Level.ERROR, f'chip re-sync for {d.resync_duration:.1f} s: '
+                               f'{failed}; twist invalid (chip missing or dirty?)', chip_values)
+            else:
+                chips = Report(Level.WARN, f'chip re-sync in progress: {failed}; twist invalid',
+                               chip_values)
+        elif d.chip_mode != 0:
+            chips = Report(Level.WARN, f'single-chip mode {d.chip_mode}: twist invalid',
+                           chip_values)
         else:
             chips = Report(Level.OK, 'fused', chip_values)
 

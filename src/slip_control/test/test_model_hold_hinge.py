@@ -1,0 +1,314 @@
+# SPDX-License-Identifier: Apache-2.0
+"""The ``model`` HOLD and HINGE laws (model_hold, model_hinge) and their slip-twist observer
+(twist_observer): hand-computed forces, the observer on quantised samples, the online
+adaptation, the stale rules and the refusals with their reasons."""
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import replace
+
+import pytest
+
+from slip_control.core.contact import ContactProperties
+from slip_control.core.controllers import ControlContact, SlipMode
+from slip_control.core.mode_switch import ModeRequest, build_controller, with_params
+from slip_control.core.model_hinge import (ModelHingeController, limit_surface_force,
+                                           torque_capacity, translation_per_radian)
+from slip_control.core.model_hold import ModelHoldController
+from slip_control.core.params import SlipControllerParams
+from slip_control.core.signals import MiddleTwist, SensorSnapshot
+from slip_control.core.twist_observer import TwistObserver, TwistObserverConfig
+
+CONTACT = ControlContact(mu_c=0.4, r=0.005, r_valid=True)
+DT = 1.0 / 120.0
+COUNT = 0.001                      # one velocity-sensor count at 120 Hz [m/s] (§6.8)
+Snap = Callable[..., SensorSnapshot]
+MakeProps = Callable[..., ContactProperties]
+
+
+def _need(f: tuple[float, float], tz: float, contact: ControlContact = CONTACT) -> float:
+    """Limit-surface force D/μ_c [N] of a two-finger mean load."""
+    return math.sqrt(f[0] ** 2 + f[1] ** 2 + (tz / contact.r) ** 2) / contact.mu_c
+
+
+# -- observer -----------------------------------------------------------------------------
+
+def test_observer_ignores_a_lone_count_and_sees_a_sustained_slip() -> None:
+    obs = TwistObserver(TwistObserverConfig(), r=0.005)
+    t = 0.0
+    for _ in range(20):
+        t += DT
+        assert not obs.update(MiddleTwist(0.0, 0.0, 0.0), t).slipping
+    t += DT
+    est = obs.update(MiddleTwist(COUNT, 0.0, 0.0), t)       # one count of noise
+    assert not est.slipping and 0.0 < est.translation_speed < COUNT
+    for _ in range(5):
+        t += DT
+        assert not obs.update(MiddleTwist(0.0, 0.0, 0.0), t).slipping
+    seen = None
+    for k in range(120):                                     # 3 counts for 1 s
+        t += DT
+        est = obs.update(MiddleTwist(0.0, -3 * COUNT, 0.0), t)
+        if seen is None and est.slipping:
+            seen = k
+    assert seen is not None and seen <= 2                    # within three samples
+    assert est.velocity[1] == pytest.approx(-3 * COUNT, rel=0.02)
+    assert est.displacement[1] == pytest.approx(-3 * COUNT * 1.0, rel=0.1)
+
+
+def test_observer_detects_a_slow_turn_of_a_small_pad() -> None:
+    # 0.1 rad/s on r = 3 mm moves the rim 0.3 mm/s: far below a count, but a turn.
+    obs = TwistObserver(TwistObserverConfig(), r=0.003)
+    t, est = 0.0, None
+    for _ in range(60):
+        t += DT
+        est = obs.update(MiddleTwist(0.0, 0.0, 0.1), t)
+    assert est is not None and est.slipping
+    assert est.rotation_rate == pytest.approx(0.1, rel=0.02)
+    assert est.translation_speed == pytest.approx(0.0, abs=1e-9)
+
+
+def test_observer_repeated_stamp_and_bad_config() -> None:
+    obs = TwistObserver(TwistObserverConfig(), r=0.005)
+    obs.update(MiddleTwist(0.002, 0.0, 0.0), 1.0)
+    before = obs.estimate.displacement
+    obs.update(MiddleTwist(0.002, 0.0, 0.0), 1.0)            # same stamp: no prediction
+    assert obs.estimate.displacement == before
+    with pytest.raises(ValueError, match='detect_speed'):
+        TwistObserverConfig(detect_speed=0.0)
+    with pytest.raises(ValueError, match='r must be'):
+        TwistObserver(TwistObserverConfig(), r=float('nan'))
+
+
+# -- model HOLD ---------------------------------------------------------------------------
+
+def _hold(params: SlipControllerParams, snap: Snap, loads: list[tuple[float, float]],
+          t0: float = 1.0, tz: float = 0.0, **kw: object
+          ) -> tuple[ModelHoldController, list[float]]:
+    """Run a model HOLD over ``loads`` (F̄ per step, 120 Hz); returns it and its outputs."""
+    h = ModelHoldController(params, CONTACT)
+    out = []
+    for k, f in enumerate(loads):
+        t = t0 + k * DT
+        o = h.step(snap(t, f=f, tz=tz, **kw), t)
+        assert o.force is not None
+        out.append(o.force)
+    return h, out
+
+
+def test_model_hold_law_hand_computed(params: SlipControllerParams, snap: Snap) -> None:
+    h = ModelHoldController(params, CONTACT)
+    # F̄ = (0.3, −0.4) → 0.5 N; τ̄/r = 0.002/0.005 = 0.4 N → D = √0.41 = 0.6403 N;
+    # need = D/0.4 = 1.6008 N; 1.5·need + 0.5 N = 2.9012 N (below the bound 1.5·need + 0.9).
+    out = h.step(snap(1.0, f=(0.3, -0.4), tz=0.002), 1.0)
+    assert out.mode == SlipMode.HOLD and not out.safe_hold
+    assert out.force == pytest.approx(1.5 * math.sqrt(0.41) / 0.4 + 0.5, rel=1e-9)
+    assert h.needed_force == pytest.approx(math.sqrt(0.41) / 0.4, rel=1e-9)
+
+
+def test_model_hold_clamps_to_the_gripper_range(params: SlipControllerParams,
+                                                snap: Snap) -> None:
+    _, light = _hold(params, snap, [(0.0, -0.01)] * 3)
+    assert light[-1] == pytest.approx(max(1.5 * 0.01 / 0.4 + 0.5, params.model.min_force))
+    low = replace(params, hold_model=replace(params.hold_model, extra_force=0.0))
+    _, tiny = _hold(low, snap, [(0.0, -0.01)] * 3)
+    assert tiny[-1] == pytest.approx(params.model.min_force)
+    _, heavy = _hold(params, snap, [(0.0, -20.0)] * 3)
+    assert heavy[-1] == pytest.approx(params.model.max_force)
+
+
+def test_model_hold_ignores_a_tap_but_follows_a_sustained_load(params: SlipControllerParams,
+                                                               snap: Snap) -> None:
+    rest, high = (0.0, -1.0), (0.0, -3.0)
+    need_rest, need_high = _need(rest, 0.0), _need(high, 0.0)
+    bound_rest = 1.5 * need_rest + 0.9
+    # A 17 ms tap (two samples) of three times the load: the force stays within the bound
+    # set by the sustained load, far below what the tap's load would ask for.
+    _, tap = _hold(params, snap, [rest] * 30 + [high] * 2 + [rest] * 30)
+    assert max(tap) <= bound_rest + 1e-9
+    assert max(tap) < 1.5 * need_high
+    # The same load sustained: after sustain_time the force is the law's for it.
+    _, step = _hold(params, snap, [rest] * 30 + [high] * 30)
+    assert step[-1] == pytest.approx(1.5 * need_high + 0.5, rel=1e-6)
+    k_bound = next(k for k, f in enumerate(step) if f > bound_rest + 1e-9)
+    assert (k_bound - 30) * DT <= params.hold_model.sustain_time + 2 * DT
+
+
+def test_model_hold_remembers_the_recent_load(params: SlipControllerParams,
+                                              snap: Snap) -> None:
+    high, rest = (0.0, -3.0), (0.0, -1.0)
+    _, out = _hold(params, snap, [high] * 30 + [rest] * 60)     # 0.5 s after the load fell
+    f_high = 1.5 * _need(high, 0.0) + 0.5
+    mem = params.hold_model.memory_time
+    # The remembered need decays with memory_time (5 s), not with fall_time (0.3 s).
+    assert out[29] == pytest.approx(f_high, rel=1e-6)
+    assert out[-1] > 1.5 * (_need(rest, 0.0) + (_need(high, 0.0) - _need(rest, 0.0))
+                            * math.exp(-0.6 / mem)) + 0.5 - 0.05
+    assert out[-1] < f_high
+
+
+def test_model_hold_reacts_to_observed_slip_and_learns(params: SlipControllerParams,
+                                                       snap: Snap) -> None:
+    load = (0.0, -1.0)
+    h, quiet = _hold(params, snap, [load] * 30)
+    f0 = quiet[-1]
+    outs = []
+    for k in range(30, 90):                  # 4 mm/s of slip for 0.5 s (2 mm of path)
+        t = 1.0 + k * DT
+        o = h.step(snap(t, f=load, v=(0.0, -0.004)), t)
+        assert o.force is not None
+        outs.append(o.force)
+    assert outs[2] > f0 + 0.05                # incipient slip: more force within 3 samples
+    assert h.learned_margin > 0.0             # beyond the 1 mm dead zone: the margin grows
+    need = _need(load, 0.0)
+    assert outs[-1] > 1.5 * need + 0.9        # ... and lifts the bound
+    assert outs[-1] <= (1.5 + h.learned_margin) * need + 0.9 + 1e-9
+
+
+def test_model_hold_stale_rules(params: SlipControllerParams, snap: Snap) -> None:
+    h, out = _hold(params, snap, [(0.0, -2.0)] * 5)
+    last = out[-1]
+    # Velocity stops; F/T continues with a smaller load: no decrease, safe hold.
+    for k in range(1, 20):
+        t = 1.0 + 4 * DT + 0.06 + k * 0.01
+        o = h.step(snap(1.0 + 4 * DT, f=(0.0, -0.5), ft_stamp=t), t)
+        assert o.safe_hold and o.force == pytest.approx(last)
+    # A larger load while the velocity is stale: the force rises at once.
+    t = 2.0
+    o = h.step(snap(1.0 + 4 * DT, f=(0.0, -6.0), ft_stamp=t), t)
+    assert o.safe_hold and o.force == pytest.approx(1.5 * _need((0.0, -6.0), 0.0) + 0.5)
+    # F/T stale: hold the last output.
+    o = h.step(snap(3.0, f=(0.0, -0.1), ft_stamp=2.5), 3.0)
+    assert o.safe_hold and o.reason.startswith('F/T stale')
+
+
+# -- model HINGE --------------------------------------------------------------------------
+
+def test_limit_surface_relations_are_consistent() -> None:
+    mu, r, ft, c = 0.5, 0.006, 0.8, 0.004
+    f = limit_surface_force(ft, mu, r, c)
+    assert translation_per_radian(f, ft, mu, r) == pytest.approx(c, rel=1e-12)
+    # At that force a torque r²·ft/c is exactly the capacity (CoR at c).
+    assert torque_capacity(f, ft, mu, r) == pytest.approx(r * r * ft / c, rel=1e-12)
+    assert torque_capacity(ft / mu, ft, mu, r) == 0.0      # sliding already: no torque left
+    assert translation_per_radian(ft / mu, ft, mu, r) == math.inf
+
+
+def test_model_hinge_law_hand_computed(params: SlipControllerParams, snap: Snap) -> None:
+    g = params.hinge_model
+    assert (g.cor_offset, g.swing_fraction, g.static_ratio) == pytest.approx((0.003, 0.8, 1.3))
+    # Long lever (τ̄/r = 4 N against ft = 0.5 N): κ_c = √(1 + (5/3)²) = 1.9437 binds, so the
+    # force is 1.9437·0.5/0.4 = 2.4296 N; a turn about a centre beyond 3 mm cannot start.
+    h = ModelHingeController(params, CONTACT)
+    out = h.step(snap(1.0, f=(0.0, -0.5), tz=0.02), 1.0)
+    assert out.mode == SlipMode.HINGE
+    assert h.threshold == pytest.approx(math.sqrt(1.0 + (5.0 / 3.0) ** 2), rel=1e-9)
+    assert out.force == pytest.approx(math.sqrt(1.0 + (5.0 / 3.0) ** 2) * 0.5 / 0.4, rel=1e-9)
+    # Short lever (τ̄/r = 0.8 N): the force that breaks static friction at this load is
+    # D/μ_s = ‖(0.5, 0.8)‖/(1.3·0.4) = 1.8138 N; the law takes 0.8 of it: κ = 1.1608.
+    h = ModelHingeController(params, CONTACT)
+    out = h.step(snap(1.0, f=(0.0, -0.5), tz=0.004), 1.0)
+    kappa = 0.8 * math.hypot(0.5, 0.8) / 0.5 / 1.3
+    assert h.threshold == pytest.approx(kappa, rel=1e-9)
+    assert out.force == pytest.approx(kappa * 0.5 / 0.4, rel=1e-9)
+    # Never below the translation floor ft/(μ_c·max_load_ratio).
+    h = ModelHingeController(params, CONTACT, static_ratio=1.6)
+    h.step(snap(1.0, f=(0.0, -0.5), tz=0.001), 1.0)
+    assert h.threshold == pytest.approx(1.0 / g.max_load_ratio, rel=1e-9)
+
+
+def _hinge_run(params: SlipControllerParams, snap: Snap, n: int, **kw: object
+               ) -> tuple[ModelHingeController, list[float], list[str]]:
+    h = ModelHingeController(params, CONTACT)
+    forces, reasons = [], []
+    for k in range(n):
+        t = 1.0 + k * DT
+        o = h.step(snap(t, **kw), t)
+        assert o.force is not None
+        forces.append(o.force)
+        reasons.append(o.reason)
+    return h, forces, reasons
+
+
+def test_model_hinge_more_force_when_the_grasp_point_translates(
+        params: SlipControllerParams, snap: Snap) -> None:
+    load: dict[str, object] = {'f': (0.0, -0.5), 'tz': 0.02}
+    _, still, _ = _hinge_run(params, snap, 30, **load)
+    # Turning at 0.2 rad/s while translating 5 mm/s: CoR 25 mm, beyond cor_offset 3 mm.
+    h, forces, reasons = _hinge_run(params, snap, 30, v=(0.0, -0.005), omega=0.2, **load)
+    g = params.hinge_model
+    excess = 0.005 - g.cor_offset * 0.2
+    gain = 1.0 + g.translation_gain * excess + g.rotation_damping * 0.2
+    assert forces[-1] == pytest.approx(still[-1] * gain, rel=0.03)
+    assert 'translating' in reasons[-1]
+    assert h.factor == pytest.approx(1.0)                   # no integral action by default
+    adaptive = replace(params, hinge_model=replace(g, adapt_up=3.0))
+    h2, forces2, _ = _hinge_run(adaptive, snap, 30, v=(0.0, -0.005), omega=0.2, **load)
+    assert h2.factor > 1.5 and forces2[-1] > forces[-1] * 1.5
+
+
+def test_model_hinge_release_when_stuck_under_torque(params: SlipControllerParams,
+                                                     snap: Snap) -> None:
+    g = replace(params.hinge_model, release_rate=1.0)
+    releasing = replace(params, hinge_model=g)
+    # No slip, τ̄ = 20 mN·m with ft 0.5 N: the load's CoR r²ft/τ = 0.6 mm is within
+    # release_cor, so the object could turn: the factor decays (to min_factor at most).
+    h, forces, reasons = _hinge_run(releasing, snap, 60, f=(0.0, -0.5), tz=0.02)
+    assert h.factor == pytest.approx(math.exp(-59 * DT), rel=0.02)
+    assert forces[-1] < forces[0]
+    assert forces[-1] >= 0.5 / (0.4 * g.max_load_ratio) - 1e-9
+    assert 'less force' in reasons[-1]
+    # No torque at all: nothing to swing; the factor stays, the reason says why.
+    h2, _, reasons2 = _hinge_run(releasing, snap, 30, f=(0.0, -0.5), tz=0.0)
+    assert h2.factor == pytest.approx(1.0)
+    assert 'no torque' in reasons2[-1]
+
+
+def test_model_hinge_stale_inputs_hand_over_to_model_hold(params: SlipControllerParams,
+                                                          snap: Snap) -> None:
+    h = ModelHingeController(params, CONTACT)
+    h.step(snap(1.0, f=(0.0, -0.5), tz=0.004), 1.0)
+    out = h.step(snap(1.0, f=(0.0, -0.5), tz=0.004, ft_stamp=1.0), 1.2)
+    assert isinstance(out.next_controller, ModelHoldController)
+    assert out.reason.startswith('HINGE ended')
+
+
+# -- requests -----------------------------------------------------------------------------
+
+def test_model_requests_build_the_model_controllers(make_props: MakeProps,
+                                                    params: SlipControllerParams,
+                                                    snap: Snap) -> None:
+    inputs = snap(1.0, f=(0.0, -0.5), tz=0.004)
+    hold = build_controller(ModeRequest(int(SlipMode.HOLD), control_law='model'),
+                            make_props(), params, 1.0, inputs=inputs)
+    assert hold.ok and isinstance(hold.controller, ModelHoldController)
+    hinge = build_controller(ModeRequest(int(SlipMode.HINGE), control_law='model'),
+                             make_props(), params, 1.0, inputs=inputs)
+    assert hinge.ok and isinstance(hinge.controller, ModelHingeController)
+    # μ_s/μ_c from the properties (the test fingers have μ_s = μ_c), not the 1.3 default.
+    assert hinge.controller.mu_s_ratio == pytest.approx(1.0)
+    # Live parameter updates keep the law (and what it took from the properties).
+    rebuilt = with_params(hinge.controller, params)
+    assert isinstance(rebuilt, ModelHingeController) and rebuilt.mu_s_ratio == pytest.approx(1.0)
+    assert isinstance(with_params(hold.controller, params), ModelHoldController)
+
+
+def test_model_hinge_refusals_state_the_reason(make_props: MakeProps,
+                                               params: SlipControllerParams,
+                                               snap: Snap) -> None:
+    req = ModeRequest(int(SlipMode.HINGE), control_law='model')
+    torque = snap(1.0, f=(0.0, -0.5), tz=0.004)
+    no_r = build_controller(req, make_props(rotational_valid=False), params, 1.0,
+                            inputs=torque)
+    assert not no_r.ok and no_r.controller is None and 'r is not valid' in no_r.message
+    no_inputs = build_controller(req, make_props(), params, 1.0, inputs=None)
+    assert not no_inputs.ok and 'no wrench measured' in no_inputs.message
+    flat = build_controller(req, make_props(), params, 1.0,
+                            inputs=snap(1.1, f=(0.0, -0.5), tz=0.0001))
+    assert not flat.ok and 'no torque measured' in flat.message
+    assert 'nothing would swing' in flat.message
+    # The thesis HINGE needs none of it.
+    thesis = build_controller(ModeRequest(int(SlipMode.HINGE)), make_props(
+        rotational_valid=False), params, 1.0, inputs=None)
+    assert thesis.ok
