@@ -428,6 +428,23 @@ class HingeController(SlipController):
         return self._emit(self._out, st)
 
 
+@dataclass(frozen=True, slots=True)
+class StepInputs:
+    """What a trajectory step works on once its inputs passed the common gates.
+
+    Attributes:
+        status: Freshness and synchronisation of the inputs.
+        stamp: Finger-1 twist stamp that triggered the step [s].
+        wrench: Combined wrench in ``gripper_middle``.
+        twist: Combined slip twist in ``gripper_middle``.
+    """
+
+    status: InputStatus
+    stamp: float
+    wrench: MiddleWrench
+    twist: MiddleTwist
+
+
 class TrajectoryController(SlipController):
     """Shared machinery of the LINEAR and ROTATIONAL laws (thesis and model): trajectory,
     progress from the fingers' travel, the common stop rules, results and the HOLD hand-over.
@@ -570,6 +587,30 @@ class TrajectoryController(SlipController):
                           final_pos=self._x, final_error=self._target - self._x,
                           elapsed=elapsed)
 
+    def _gate_step(self, inputs: SensorSnapshot, t: float) -> ControlOutput | StepInputs:
+        """The common start of a step: the HOLD successor once finished, the end on stale
+        inputs, and waiting for a new synchronised finger-1 sample; else the step's inputs."""
+        if self._done:
+            if self._successor is not None:
+                return self._successor.step(inputs, t)
+            return self._emit(None, self._assess(inputs, t), 'finished')
+        st = self._assess(inputs, t)
+        if not st.velocity_fresh:
+            return self._finish(inputs, t, False, 'velocity stale', t - self._t_start, None)
+        if not st.ft_fresh:
+            return self._finish(inputs, t, False, 'F/T stale', t - self._t_start, None)
+        stamp = self._new_trigger(inputs)
+        if stamp is None:
+            return self._emit(None, st, 'no new sample')
+        if not st.synced:
+            # Leave _last_stamp alone: the next good sample's dt spans this one.
+            return self._emit(None, st, 'finger velocities not synchronised')
+        assert inputs.wrench_1 is not None and inputs.wrench_2 is not None
+        assert inputs.twist_1 is not None and inputs.twist_2 is not None
+        frames = self._p.frames
+        return StepInputs(st, stamp, combine_wrenches(frames, inputs.wrench_1, inputs.wrench_2),
+                          combine_twists(frames, inputs.twist_1, inputs.twist_2))
+
     def _finish(self, inputs: SensorSnapshot, t: float, success: bool, message: str,
                 elapsed: float, track: TrackingRecord | None) -> ControlOutput:
         """End the trajectory and run the HOLD successor on the same inputs (§4.1)."""
@@ -622,26 +663,10 @@ class _ThesisTrajectory(TrajectoryController):
 
     def step(self, inputs: SensorSnapshot, t: float) -> ControlOutput:
         """One LINEAR/ROTATIONAL step (§4.5/§4.6) with the stop conditions of §4.9."""
-        if self._done:
-            if self._successor is not None:
-                return self._successor.step(inputs, t)
-            return self._emit(None, self._assess(inputs, t), 'finished')
-        st = self._assess(inputs, t)
-        if not st.velocity_fresh:
-            return self._finish(inputs, t, False, 'velocity stale', t - self._t_start, None)
-        if not st.ft_fresh:
-            return self._finish(inputs, t, False, 'F/T stale', t - self._t_start, None)
-        stamp = self._new_trigger(inputs)
-        if stamp is None:
-            return self._emit(None, st, 'no new sample')
-        if not st.synced:
-            # Leave _last_stamp alone: the next good sample's dt spans this one.
-            return self._emit(None, st, 'finger velocities not synchronised')
-        assert inputs.wrench_1 is not None and inputs.wrench_2 is not None
-        assert inputs.twist_1 is not None and inputs.twist_2 is not None
-        frames = self._p.frames
-        w = combine_wrenches(frames, inputs.wrench_1, inputs.wrench_2)
-        v = combine_twists(frames, inputs.twist_1, inputs.twist_2)
+        gated = self._gate_step(inputs, t)
+        if isinstance(gated, ControlOutput):
+            return gated
+        st, stamp, w, v = gated.status, gated.stamp, gated.wrench, gated.twist
 
         dt = None if self._last_stamp is None else stamp - self._last_stamp
         dt_ok = dt is not None and 0.0 < dt <= self._p.dt_max

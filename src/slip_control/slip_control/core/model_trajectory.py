@@ -57,7 +57,7 @@ from slip_control.core.controllers import (ControlContact, ControlOutput, Tracki
                                            TrajectoryController)
 from slip_control.core.params import SlipControllerParams
 from slip_control.core.signals import (MiddleTwist, MiddleWrench, SensorSnapshot,
-                                       assess_inputs, combine_twists, combine_wrenches)
+                                       assess_inputs, combine_wrenches)
 from slip_control.core.slip_model import ContactModel
 from slip_control.core.slip_observer import ObserverNoise, SlipEstimate, SlipObserver
 
@@ -213,25 +213,10 @@ class ModelTrajectoryController(TrajectoryController):
 
     def step(self, inputs: SensorSnapshot, t: float) -> ControlOutput:
         """One step of the model law (module docstring)."""
-        if self._done:
-            if self._successor is not None:
-                return self._successor.step(inputs, t)
-            return self._emit(None, self._assess(inputs, t), 'finished')
-        st = self._assess(inputs, t)
-        if not st.velocity_fresh:
-            return self._finish(inputs, t, False, 'velocity stale', t - self._t_start, None)
-        if not st.ft_fresh:
-            return self._finish(inputs, t, False, 'F/T stale', t - self._t_start, None)
-        stamp = self._new_trigger(inputs)
-        if stamp is None:
-            return self._emit(None, st, 'no new sample')
-        if not st.synced:
-            return self._emit(None, st, 'finger velocities not synchronised')
-        assert inputs.wrench_1 is not None and inputs.wrench_2 is not None
-        assert inputs.twist_1 is not None and inputs.twist_2 is not None
-        frames = self._p.frames
-        w = combine_wrenches(frames, inputs.wrench_1, inputs.wrench_2)
-        v = combine_twists(frames, inputs.twist_1, inputs.twist_2)
+        gated = self._gate_step(inputs, t)
+        if isinstance(gated, ControlOutput):
+            return gated
+        st, stamp, w, v = gated.status, gated.stamp, gated.wrench, gated.twist
         dt = 0.0 if self._last_stamp is None else stamp - self._last_stamp
         if not 0.0 < dt <= self._p.dt_max:
             dt = 0.0
