@@ -15,9 +15,12 @@ limit surface, docs/control_and_estimation.md).
   ``L_k = (fx, fy − W)`` and ``M_k = τ + c × L_k`` (so a push on a long lever is a twist), and
   ``F_need = max_k √(|L_k|² + (M_k/r̄)²)/(μ₁ + μ₂)`` (the weight alone included) must stay
   below ``max_force/margin``. The other scenarios need the hold without loads (weight alone).
-* LINEAR (gravity-driven slide from the pick-up pose): the weight must overcome static friction
-  at the smallest controllable force, ``W > (μs₁ + μs₂)·min_force·margin``, and a hold must be
-  possible.
+* LINEAR (gravity-driven slide from the hanging pose, CoM straight below the grasp point: in
+  any other pose the weight's torque ``W·d·sin γ`` turns the object while the pads slide — on
+  the limit surface a translating pad has no torque left — by about ``P·d·sin γ/r̄²`` rad over
+  a slide ``P``, i.e. radians for millimetres of lever): the weight must overcome static
+  friction at the smallest controllable force, ``W > (μs₁ + μs₂)·min_force·margin``, and a
+  hold must be possible.
 * ROTATIONAL (gravity-driven turn from the pose with the CoM lever ``d`` horizontal,
   `slip_bringup.core.evaluation.poses.lever_horizontal_turn`): holding that pose,
   ``√(W² + (W·d/r̄)²)/(μ₁ + μ₂)``, must be possible; the lever must satisfy
@@ -109,10 +112,6 @@ def assess(obj: ObjectPreset, loads: Sequence[Load],
         f'gripper too weak: holding it still needs {still:.1f} N x {m} margin, the gripper gives '
         f'{limits.max_force:.0f} N')
     static_slide = (c1.mu_s + c2.mu_s) * limits.min_force * m
-    linear = hold_ok or ('' if weight > static_slide else
-                         f'too light to slide: weight {weight:.2f} N cannot overcome static '
-                         f'friction {static_slide:.2f} N at the {limits.min_force} N minimum '
-                         'force')
     static_turn = (c1.mu_s * c1.r + c2.mu_s * c2.r) * limits.min_force * m
     mu = c1.mu_c + c2.mu_c
 
@@ -122,6 +121,10 @@ def assess(obj: ObjectPreset, loads: Sequence[Load],
             f'gripper too weak: holding {what} needs {need_tilt:.1f} N x {m} margin, the '
             f'gripper gives {limits.max_force:.0f} N')
 
+    linear = hold_ok or (
+        '' if weight > static_slide else
+        f'too light to slide: weight {weight:.2f} N cannot overcome static friction '
+        f'{static_slide:.2f} N at the {limits.min_force} N minimum force')
     horizontal = tilted(1.0, 'the CoM lever horizontal')
     if hold_ok or horizontal:
         rotational = hold_ok or horizontal

@@ -12,10 +12,12 @@ cell (`slip_bringup.core.evaluation`: the experiment runner's exploration and th
 2. with the **estimated** properties (the real pipeline; the true ones with
    ``truth_properties``), once per control-law family of the task:
    **hold** under `holding.scaled_pushes` (loads scaled to the object's weight),
-   **linear** 20 mm / 2 s from the pick-up pose, **rotational** 20° / 2 s from the pose with
-   the CoM lever horizontal (`poses.lever_horizontal_turn`; the sign of the angle is the one
-   gravity drives) and **hinge** through 60° from the pose 60° from hanging
-   (`poses.hinge_start_turn`).
+   **linear** 20 mm / 2 s from the hanging pose (the gripper turned so that the CoM hangs
+   straight below the grasp point; `poses.turn_to_hanging_angle`), **rotational** 20° / 2 s
+   from the pose with the CoM lever horizontal (`poses.lever_horizontal_turn`; the sign of the
+   angle is the one gravity drives) and **hinge** through 60° from the pose 60° from hanging
+   (`poses.hinge_start_turn`). Each set-up turn starts from the object's rotation in the pads
+   after the pick-up (an object whose CoM is off to the side swings before HOLD catches it).
 
 Every scenario is also classified by `feasibility.assess` (stated physical criteria). Success
 criteria (the issue's targets; all from the simulator truth, never the controller's belief):
@@ -56,8 +58,7 @@ from slip_bringup.core.evaluation.estimation import EstimationOutcome, estimate
 from slip_bringup.core.evaluation.hinge import HingeOutcome, hinge
 from slip_bringup.core.evaluation.holding import (HoldOutcome, Push, hold_under_disturbance,
                                                   scaled_pushes, sustained)
-from slip_bringup.core.evaluation.poses import (hanging_angle, hinge_start_turn,
-                                                lever_horizontal_turn)
+from slip_bringup.core.evaluation.poses import hanging_angle
 from slip_bringup.core.evaluation.settings import EvalSettings, EvaluationError
 from slip_bringup.core.evaluation.trajectories import (TrajectoryOutcome, linear_slip,
                                                        rotational_slip)
@@ -229,7 +230,8 @@ def _scenario(scenario: str, family: str, name: str, obj: PopulationObject,
         'hold': lambda: judge_hold(hold_under_disturbance(name, pushes, settings, properties),
                                    feas.hold_force_needed, criteria),
         'linear': lambda: judge_trajectory(linear_slip(
-            name, LINEAR_DISTANCE, LINEAR_DURATION, settings, properties), criteria),
+            name, LINEAR_DISTANCE, LINEAR_DURATION, settings, properties, hang_com=com),
+            criteria),
         'rotational': lambda: judge_trajectory(_rotational(name, com, settings, properties),
                                                criteria),
         'hinge': lambda: judge_hinge(_hinge(name, com, settings, properties), criteria),
@@ -253,15 +255,13 @@ def _scenario(scenario: str, family: str, name: str, obj: PopulationObject,
 
 def _rotational(name: str, com: tuple[float, float], settings: EvalSettings,
                 properties: ContactProperties | None) -> TrajectoryOutcome:
-    turn, sign = lever_horizontal_turn(com)
-    return rotational_slip(name, sign * ROTATIONAL_ANGLE, ROTATIONAL_DURATION, settings,
-                           properties, turn=turn)
+    return rotational_slip(name, ROTATIONAL_ANGLE, ROTATIONAL_DURATION, settings, properties,
+                           lever_com=com)
 
 
 def _hinge(name: str, com: tuple[float, float], settings: EvalSettings,
            properties: ContactProperties | None) -> HingeOutcome:
-    start, sign = hinge_start_turn(com, HINGE_TURN)
-    return hinge(name, sign * HINGE_TURN, settings, properties, start_angle=start)
+    return hinge(name, HINGE_TURN, settings, properties, hinge_com=com)
 
 
 def _worst(values: list[float]) -> float:

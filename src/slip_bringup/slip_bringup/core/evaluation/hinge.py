@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
+from slip_bringup.core.evaluation.poses import hinge_start_turn
 from slip_bringup.core.evaluation.scene import controlled_scene
 from slip_bringup.core.evaluation.settings import EvalSettings
 from slip_control.core.contact import ContactProperties
@@ -54,14 +56,25 @@ class HingeOutcome:
 
 def hinge(preset: str, turn: float = math.radians(60.0), settings: EvalSettings = EvalSettings(),
           properties: ContactProperties | None = None, start_angle: float = math.radians(60.0),
-          settle: float = 1.0, wait: float = 2.0) -> HingeOutcome:
+          settle: float = 1.0, wait: float = 2.0,
+          hinge_com: Sequence[float] | None = None) -> HingeOutcome:
     """§5.3 ``go_to_hinge_pose`` + ``hinge_mode`` on an object held in the air.
 
     HOLD while the gripper turns to the hinge pose (``start_angle``), HINGE on, ``settle``
     [s] (the object swings towards hanging; this pause is ours, so the turn is measured on its
     own), the gripper turns another ``turn`` (runner's motion time), ``wait``, HOLD on.
+
+    ``hinge_com`` (CoM offset from the grasp point, object frame [m]), when given, replaces
+    ``start_angle`` and the sign of ``turn``: the hinge pose puts the object ``|turn|`` from
+    hanging (`poses.hinge_start_turn`, from the object's rotation in the pads after the
+    pick-up), and the gripper then turns on the same way.
     """
     h, ctl, probe = controlled_scene(preset, settings, properties)
+    if hinge_com is not None:
+        s = h.state()
+        start_angle, sign = hinge_start_turn(hinge_com, abs(turn), s.theta)
+        start_angle -= s.arm_angle
+        turn = sign * abs(turn)
     h.move(rotation=start_angle)
     h.run_for(0.3)
     ctl.require_mode(h, ModeRequest(int(SlipMode.HINGE)))

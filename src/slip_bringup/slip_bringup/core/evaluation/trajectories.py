@@ -14,6 +14,7 @@ from dataclasses import dataclass
 from friction_models.core.harness import Harness, default_motion_time
 
 from slip_bringup.core.evaluation.agents import ControllerAgent
+from slip_bringup.core.evaluation.poses import lever_horizontal_turn, turn_to_hanging_angle
 from slip_bringup.core.evaluation.scene import controlled_scene, gravity_in_middle
 from slip_bringup.core.evaluation.settings import EvalSettings
 from slip_bringup.core.evaluation.truth import TruthProbe, interp_progress
@@ -101,6 +102,16 @@ def _run_trajectory(h: Harness, ctl: ControllerAgent, probe: TruthProbe, request
     return t0, errors, result, result_time, forces
 
 
+def turn_gripper(h: Harness, turn: float, duration: float | None = None,
+                 settle: float = 0.5) -> None:
+    """Turn the gripper by ``turn`` [rad] (runner's motion time unless ``duration`` [s]), then
+    wait ``settle`` [s] (also without a turn)."""
+    if turn != 0.0:
+        h.move(rotation=turn, duration=duration if duration is not None else
+               default_motion_time(0.0, turn))
+    h.run_for(settle)
+
+
 def _rms(values: Sequence[float]) -> float:
     return math.sqrt(sum(v * v for v in values) / len(values)) if values else _NAN
 
@@ -108,14 +119,24 @@ def _rms(values: Sequence[float]) -> float:
 def linear_slip(preset: str, distance: float = 0.02, duration: float = 2.0,
                 settings: EvalSettings = EvalSettings(),
                 properties: ContactProperties | None = None,
-                latch_direction: bool = True) -> TrajectoryOutcome:
+                latch_direction: bool = True,
+                hang_com: Sequence[float] | None = None) -> TrajectoryOutcome:
     """LINEAR slip of ``distance`` [m] in ``duration`` [s] on an object held in the air.
 
     The request is the runner's (§5.3 ``linear_slippage``: direction latched from the first
     motion); gravity makes the object slide down. The runner waits ``duration + 1 s``; this
     waits ``duration + 1.5 s`` so the hand-over to HOLD is included.
+
+    ``hang_com`` (the object's CoM offset from the grasp point, object frame [m]): before the
+    request, the gripper turns under HOLD so that the CoM hangs straight below the grasp point
+    (`poses.turn_to_hanging_angle`, from the object's rotation in the pads after the pick-up),
+    the one pose in which a gravity-driven slide is a translation (elsewhere the weight's
+    torque turns the object while the pads slide; docs/evaluation.md).
     """
     h, ctl, probe = controlled_scene(preset, settings, properties)
+    if hang_com is not None:
+        s = h.state()
+        turn_gripper(h, turn_to_hanging_angle(hang_com, 0.0, s.theta) - s.arm_angle)
     s0 = h.state()
     gx, gy = gravity_in_middle(s0.arm_angle)
     request = ModeRequest(int(SlipMode.LINEAR), duration=duration, distance=distance,
@@ -146,7 +167,8 @@ def rotational_slip(preset: str, angle: float = math.radians(20.0), duration: fl
                     properties: ContactProperties | None = None,
                     tilt: float = math.radians(90.0),
                     tilt_time: float | None = None,
-                    turn: float | None = None) -> TrajectoryOutcome:
+                    turn: float | None = None,
+                    lever_com: Sequence[float] | None = None) -> TrajectoryOutcome:
     """ROTATIONAL slip of ``angle`` [rad, signed about ``gripper_middle`` +z] in ``duration``.
 
     Set-up: object held in the air under HOLD; the gripper turns by ``−sign(angle)·tilt``
@@ -158,6 +180,11 @@ def rotational_slip(preset: str, angle: float = math.radians(20.0), duration: fl
     (an object whose CoM is not below the grasp point needs its own; see
     `scene.lever_horizontal_turn`); ``tilt`` is then not used.
 
+    ``lever_com`` (CoM offset from the grasp point, object frame [m]), when given, replaces
+    both: the set-up turn puts the CoM lever horizontal (`poses.lever_horizontal_turn`, from the
+    object's rotation in the pads after the pick-up), and the sign of ``angle`` becomes the one
+    gravity drives from there.
+
     ``tilt`` defaults to 90°: the reference presets carry their CoM only 1 cm below the grasp
     point, so near vertical the gravity torque falls below the torsional friction at the
     controller's force floor and the object stops short (from 60°, a 45° command ends 3–15°
@@ -167,12 +194,14 @@ def rotational_slip(preset: str, angle: float = math.radians(20.0), duration: fl
         raise ValueError(f'tilt {tilt!r} rad must be at least |angle| {abs(angle)!r} rad: '
                          'gravity can only turn the object back to hanging')
     h, ctl, probe = controlled_scene(preset, settings, properties)
-    if turn is None:
+    if lever_com is not None:
+        s = h.state()
+        turn, gravity_sign = lever_horizontal_turn(lever_com, s.theta)
+        turn -= s.arm_angle
+        angle = gravity_sign * abs(angle)
+    elif turn is None:
         turn = -math.copysign(abs(tilt), angle)
-    if turn != 0.0:
-        h.move(rotation=turn, duration=tilt_time if tilt_time is not None else
-               default_motion_time(0.0, turn))
-    h.run_for(0.5)
+    turn_gripper(h, turn, tilt_time)
     s0 = h.state()
     sign = math.copysign(1.0, angle)
     request = ModeRequest(int(SlipMode.ROTATIONAL), duration=duration, angle=angle)
