@@ -197,72 +197,74 @@ def test_limit_surface_relations_are_consistent() -> None:
 
 def test_model_hinge_law_hand_computed(params: SlipControllerParams, snap: Snap) -> None:
     g = params.hinge_model
-    assert (g.cor_offset, g.swing_fraction, g.static_ratio) == pytest.approx((0.003, 0.8, 1.3))
-    # Long lever (τ̄/r = 4 N against ft = 0.5 N): κ_c = √(1 + (5/3)²) = 1.9437 binds, so the
-    # force is 1.9437·0.5/0.4 = 2.4296 N; a turn about a centre beyond 3 mm cannot start.
+    assert (g.orientation_gain, g.static_ratio, g.max_cor) == pytest.approx((2.0, 1.3, 0.008))
+    # At the request the pads may carry the torque they carry now (20 mN·m) with the weight
+    # (0.5 N); stuck, static friction (μ_s = 1.3·μ_c) holds: F = ‖(0.5, 0.02/0.005)‖/(1.3·0.4).
     h = ModelHingeController(params, CONTACT)
     out = h.step(snap(1.0, f=(0.0, -0.5), tz=0.02), 1.0)
     assert out.mode == SlipMode.HINGE
-    assert h.threshold == pytest.approx(math.sqrt(1.0 + (5.0 / 3.0) ** 2), rel=1e-9)
-    assert out.force == pytest.approx(math.sqrt(1.0 + (5.0 / 3.0) ** 2) * 0.5 / 0.4, rel=1e-9)
-    # Short lever (τ̄/r = 0.8 N): the force that breaks static friction at this load is
-    # D/μ_s = ‖(0.5, 0.8)‖/(1.3·0.4) = 1.8138 N; the law takes 0.8 of it: κ = 1.1608.
+    assert h.reference_torque == pytest.approx(0.02)
+    assert out.force == pytest.approx(math.hypot(0.5, 4.0) / (1.3 * 0.4), rel=1e-9)
+    # A nearly hanging object (0.1 mN·m): the reference torque is raised to r²·ft/max_cor
+    # (CoR within 8 mm), and the force never falls below the weight's ft/(μ_c·max_load_ratio).
     h = ModelHingeController(params, CONTACT)
-    out = h.step(snap(1.0, f=(0.0, -0.5), tz=0.004), 1.0)
-    kappa = 0.8 * math.hypot(0.5, 0.8) / 0.5 / 1.3
-    assert h.threshold == pytest.approx(kappa, rel=1e-9)
-    assert out.force == pytest.approx(kappa * 0.5 / 0.4, rel=1e-9)
-    # Never below the translation floor ft/(μ_c·max_load_ratio).
-    h = ModelHingeController(params, CONTACT, static_ratio=1.6)
-    h.step(snap(1.0, f=(0.0, -0.5), tz=0.001), 1.0)
-    assert h.threshold == pytest.approx(1.0 / g.max_load_ratio, rel=1e-9)
+    out = h.step(snap(1.0, f=(0.0, -0.5), tz=0.0001), 1.0)
+    floor_torque = 0.005 ** 2 * 0.5 / 0.008
+    expected = max(math.hypot(0.5, floor_torque / 0.005) / (1.3 * 0.4),
+                   0.5 / (0.4 * g.max_load_ratio))
+    assert out.force == pytest.approx(expected, rel=1e-9)
+    assert 'no torque' in out.reason
 
 
-def _hinge_run(params: SlipControllerParams, snap: Snap, n: int, **kw: object
-               ) -> tuple[ModelHingeController, list[float], list[str]]:
+def _turned_load(turn: float) -> tuple[float, float]:
+    """Mean load of a 0.5 N weight on a gripper turned ``turn`` [rad] (load direction)."""
+    return 0.5 * math.sin(turn), -0.5 * math.cos(turn)
+
+
+def _hinge_steps(params: SlipControllerParams, snap: Snap, gripper_turn: float,
+                 pad_turn_rate: float, n: int = 60) -> tuple[ModelHingeController, list[float]]:
+    """Gripper turning ``gripper_turn`` [rad] over ``n`` samples from the start pose, the
+    object turning in the pads at ``pad_turn_rate`` [rad/s]; torque 20 mN·m throughout."""
     h = ModelHingeController(params, CONTACT)
-    forces, reasons = [], []
+    forces = []
     for k in range(n):
         t = 1.0 + k * DT
-        o = h.step(snap(t, **kw), t)
+        o = h.step(snap(t, f=_turned_load(gripper_turn * k / (n - 1)), tz=0.02,
+                        omega=pad_turn_rate if k else 0.0), t)
         assert o.force is not None
         forces.append(o.force)
-        reasons.append(o.reason)
-    return h, forces, reasons
+    return h, forces
 
 
-def test_model_hinge_more_force_when_the_grasp_point_translates(
+def test_model_hinge_releases_an_object_the_gripper_drags_along(
         params: SlipControllerParams, snap: Snap) -> None:
-    load: dict[str, object] = {'f': (0.0, -0.5), 'tz': 0.02}
-    _, still, _ = _hinge_run(params, snap, 30, **load)
-    # Turning at 0.2 rad/s while translating 5 mm/s: CoR 25 mm, beyond cor_offset 3 mm.
-    h, forces, reasons = _hinge_run(params, snap, 30, v=(0.0, -0.005), omega=0.2, **load)
-    g = params.hinge_model
-    excess = 0.005 - g.cor_offset * 0.2
-    gain = 1.0 + g.translation_gain * excess + g.rotation_damping * 0.2
-    assert forces[-1] == pytest.approx(still[-1] * gain, rel=0.03)
-    assert 'translating' in reasons[-1]
-    assert h.factor == pytest.approx(1.0)                   # no integral action by default
-    adaptive = replace(params, hinge_model=replace(g, adapt_up=3.0))
-    h2, forces2, _ = _hinge_run(adaptive, snap, 30, v=(0.0, -0.005), omega=0.2, **load)
-    assert h2.factor > 1.5 and forces2[-1] > forces[-1] * 1.5
+    # The gripper turns 0.2 rad with the object stuck to the pads: with τ₀ > 0 the uphill
+    # sense is −1 and a load direction turning by +a reads as a gripper turn of −a.
+    h, forces = _hinge_steps(params, snap, 0.2, 0.0)
+    assert h.world_turn == pytest.approx(-0.2, abs=0.01)
+    assert forces[-1] < 0.7 * forces[0]
+    # Never below the force that carries the weight.
+    assert min(forces) >= 0.5 / (0.4 * params.hinge_model.max_load_ratio) - 1e-9
+    # Swinging down instead (the other way): more force, to catch it.
+    h, forces = _hinge_steps(params, snap, -0.2, 0.0)
+    assert h.world_turn == pytest.approx(0.2, abs=0.01)
+    assert forces[-1] > 1.2 * forces[0]
 
 
-def test_model_hinge_release_when_stuck_under_torque(params: SlipControllerParams,
-                                                     snap: Snap) -> None:
-    g = replace(params.hinge_model, release_rate=1.0)
-    releasing = replace(params, hinge_model=g)
-    # No slip, τ̄ = 20 mN·m with ft 0.5 N: the load's CoR r²ft/τ = 0.6 mm is within
-    # release_cor, so the object could turn: the factor decays (to min_factor at most).
-    h, forces, reasons = _hinge_run(releasing, snap, 60, f=(0.0, -0.5), tz=0.02)
-    assert h.factor == pytest.approx(math.exp(-59 * DT), rel=0.02)
-    assert forces[-1] < forces[0]
-    assert forces[-1] >= 0.5 / (0.4 * g.max_load_ratio) - 1e-9
-    assert 'less force' in reasons[-1]
-    # No torque at all: nothing to swing; the factor stays, the reason says why.
-    h2, _, reasons2 = _hinge_run(releasing, snap, 30, f=(0.0, -0.5), tz=0.0)
-    assert h2.factor == pytest.approx(1.0)
-    assert 'no torque' in reasons2[-1]
+def test_model_hinge_keeps_the_force_while_the_object_keeps_its_place(
+        params: SlipControllerParams, snap: Snap) -> None:
+    # The pads turn under the object exactly as the gripper turns (the object keeps its
+    # orientation in the world): nothing to correct.
+    n = 60
+    rate = 0.2 / ((n - 1) * DT)
+    h, forces = _hinge_steps(params, snap, 0.2, rate, n)
+    assert h.world_turn == pytest.approx(0.0, abs=0.01)
+    no_damping = replace(params, hinge_model=replace(params.hinge_model, rotation_damping=0.0))
+    h2, forces2 = _hinge_steps(no_damping, snap, 0.2, rate, n)
+    assert h2.world_turn == pytest.approx(0.0, abs=0.01)
+    # Slipping, so kinetic friction: the pads carry the reference torque at μ_c.
+    assert h2.observer.estimate.slipping
+    assert forces2[-1] == pytest.approx(math.hypot(0.5, 4.0) / 0.4, rel=0.02)
 
 
 def test_model_hinge_stale_inputs_hand_over_to_model_hold(params: SlipControllerParams,
@@ -307,7 +309,7 @@ def test_model_hinge_refusals_state_the_reason(make_props: MakeProps,
     flat = build_controller(req, make_props(), params, 1.0,
                             inputs=snap(1.1, f=(0.0, -0.5), tz=0.0001))
     assert not flat.ok and 'no torque measured' in flat.message
-    assert 'nothing would swing' in flat.message
+    assert 'nothing would turn the pads' in flat.message
     # The thesis HINGE needs none of it.
     thesis = build_controller(ModeRequest(int(SlipMode.HINGE)), make_props(
         rotational_valid=False), params, 1.0, inputs=None)

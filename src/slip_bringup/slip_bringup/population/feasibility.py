@@ -29,8 +29,14 @@ limit surface, docs/control_and_estimation.md).
   possible.
 * HINGE through ``turn`` from the pose ``turn`` from hanging (`poses.hinge_start_turn`):
   holding every pose on the way there must be possible (torque ``W·d·|sin γ|`` at the largest
-  hanging angle ``γ`` passed); the grasp point translates at least ``turn·r̄²/d`` while the
-  object turns, so ``turn·r̄²/d ≤ hinge_translation_limit/margin``; and a hold must be
+  hanging angle ``γ`` passed); a hinge keeps the object where it is, ``γ₀ = turn`` from
+  hanging, while the gripper turns around it: the weight's torque ``W·d·sin γ₀`` is all that
+  turns the pads, so the grasp point translates at least ``turn·r̄²/(d·sin γ₀)`` (CoR on the
+  limit surface), which must stay within ``hinge_translation_limit/margin``; static friction
+  above kinetic must let the pads break loose in rotation at a force that still carries the
+  weight, ``F* = max(min_force, W/(μ₁ + μ₂))``, where the static torque capacity left is
+  ``r̄·√(((μs₁ + μs₂)·F*)² − W²)``: ``W·d·sin γ₀`` must exceed it by the margin (below it, the
+  object stays stuck or every break-away is a slide of the grasp point); and a hold must be
   possible.
 """
 from __future__ import annotations
@@ -141,13 +147,22 @@ def assess(obj: ObjectPreset, loads: Sequence[Load],
     on_the_way = tilted(path_sin_max(obj.com_offset, turn),
                         f'the poses on the way to {math.degrees(limits.hinge_turn):.0f} deg '
                         'from hanging')
-    drag = limits.hinge_turn * r * r / lever if lever > 0.0 else math.inf
+    arm = lever * math.sin(limits.hinge_turn)        # d·sin γ₀ at the hinge pose
+    drag = limits.hinge_turn * r * r / arm if arm > 0.0 else math.inf
+    rho = (c1.mu_s + c2.mu_s) / mu
+    carry = max(limits.min_force, weight / mu)       # least force that carries the weight
+    stuck = r * math.sqrt(max(0.0, ((c1.mu_s + c2.mu_s) * carry) ** 2 - weight ** 2)) / weight
     if hold_ok or on_the_way:
         hinge = hold_ok or on_the_way
     elif drag * m > limits.hinge_translation_limit:
         hinge = (f'lever too short: a hinge through {math.degrees(limits.hinge_turn):.0f} deg '
                  f'drags the grasp point >= {drag * 1e3:.1f} mm (lever {lever * 1e3:.1f} mm, '
                  f'r {r * 1e3:.1f} mm)')
+    elif arm <= stuck * m:
+        hinge = (f'static friction too high: at the hinge pose the weight\'s lever '
+                 f'{arm * 1e3:.1f} mm cannot break the pads loose in rotation while they carry '
+                 f'the weight (needs > {stuck * 1e3:.1f} mm x {m} margin at {carry:.2f} N, '
+                 f'mu_s/mu_c {rho:.2f})')
     else:
         hinge = ''
     return Feasibility(hold=hold, linear=linear, rotational=rotational, hinge=hinge,

@@ -293,40 +293,29 @@ class ModelHoldParams:
 
 @dataclass(frozen=True)
 class ModelHingeParams:
-    """(addition) HINGE with the ``model`` law (model_hinge): turn freely, do not translate."""
+    """(addition) HINGE with the ``model`` law (model_hinge): the object keeps its orientation
+    in the world while the gripper turns, the grasp point does not translate."""
 
-    cor_offset: float = _f(0.003, 'm', 1e-4, 0.1,
-                           'allowed offset of the centre of rotation from the grasp point '
-                           '(grasp-point translation per radian of turn)')
+    orientation_gain: float = _f(2.0, '1/rad', 0.0, 100.0,
+                                 'relative fall of the torque the pads may carry per radian '
+                                 'the object is dragged away from hanging')
+    orientation_integral: float = _f(1.0, '1/(rad*s)', 0.0, 1000.0,
+                                     'the same for the time integral of that turn')
+    integral_limit: float = _f(0.25, 'rad*s', 0.0, 100.0,
+                               'bound of the integral of the turn')
+    max_cor: float = _f(0.008, 'm', 1e-4, 1.0,
+                        'the reference torque is at least r^2 ft/max_cor (a nearly hanging '
+                        'object is not released about a centre of rotation further away)')
     max_load_ratio: float = _f(0.95, '-', 0.1, 1.0,
                                'largest f_t/(mu_c F): the force never falls below '
                                'ft/(mu_c max_load_ratio)')
-    translation_gain: float = _f(300.0, 's/m', 0.0, 100000.0,
-                                 'relative force increase per translation speed beyond '
-                                 'cor_offset*|omega|')
     rotation_damping: float = _f(0.5, 's/rad', 0.0, 100.0,
                                  'relative force increase per observed rotation rate (damps '
-                                 'the swing)')
-    adapt_up: float = _f(0.0, '-', 0.0, 1000.0,
-                         'the force factor changes by e^adapt_up per cor_offset of translation '
-                         'beyond (or short of) cor_offset per radian of turn')
-    quasi_static_rate: float = _f(1.0, 'rad/s', 0.0, 100.0,
-                                  'the factor adapts to translation only while |omega| is '
-                                  'below this (a faster swing is inertial)')
-    release_rate: float = _f(0.0, '1/s', 0.0, 100.0,
-                             'decay rate of the force factor while the object is stuck under '
-                             'a torque that would turn it about a centre within release_cor')
-    release_cor: float = _f(0.009, 'm', 1e-4, 1.0,
-                            'stuck objects are released while r^2 ft/|tau| is below this')
-    swing_fraction: float = _f(0.8, '-', 0.1, 1.0,
-                               'the force is at most this fraction of the one at which the load '
-                               'at the request breaks static friction (so the object swings)')
+                                 'a fast swing)')
     static_ratio: float = _f(1.3, '-', 1.0, 3.0,
                              'mu_s/mu_c assumed when the properties carry no valid mu_s')
     min_torque: float = _f(0.0005, 'N*m', 0.0, 1.0,
                            'mean torque below this counts as no torque (sensor noise)')
-    min_factor: float = _f(0.3, '-', 0.01, 1.0, 'smallest learned force factor')
-    max_factor: float = _f(4.0, '-', 1.0, 100.0, 'largest learned force factor')
 
 
 @dataclass(frozen=True)
