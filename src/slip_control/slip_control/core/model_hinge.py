@@ -20,7 +20,8 @@ torque and with it the CoR is worst. This law keeps the object where it is when 
           φ̂ = atan2(−F̄x, −F̄y)        the gripper's turn, from the direction of the load
     e   = u·ψ̂                         u: the uphill sense (away from hanging) = −sign(τ₀)
     T   = T₀·(1 − k_p·e − k_i·∫e dt)   T₀ = max(|τ₀|, r²·f_t/max_cor)
-    F   = ‖(f_t, T/r)‖/μ  ·(1 + rotation_damping·|ω̂|),   μ = μ_c slipping, μ_s stuck
+    F   = ‖(f_t, T/r)‖/μ  ·(1 + rotation_damping·|ω̂| + translation_gain·ê),
+          μ = μ_c slipping, μ_s stuck;   ê = max(0, v̂_t − cor_offset·|ω̂|) while slipping
 
 ``T`` is the torque the pads may carry before they turn under the object. At ``e = 0`` it is
 the torque at the request, so the object neither swings down nor is carried along; when the
@@ -32,7 +33,9 @@ it slips with ``μ_c``. ``max_cor`` puts a floor under ``T₀``: an object nearl
 otherwise be released about a CoR far from the grasp point. The force never falls below
 ``f_t/(μ_c·max_load_ratio)`` (the pads carry the weight) and stays within
 ``[min_force, max_force]`` (``model`` group); the loads are low-passed like the ``model``
-HOLD's; the rotation-rate term damps a fast swing. The integral ``∫e dt`` is limited to
+HOLD's; the rotation-rate term damps a fast swing, and the translation term adds force while
+the grasp point translates more than ``cor_offset`` per radian of turn (a centre of pressure off
+the pad centre, fingers of very different friction). The integral ``∫e dt`` is limited to
 ``±integral_limit``.
 
 Measured on population seed 2026, objects 0–79 (estimated properties, truth as the judge):
@@ -193,7 +196,10 @@ class ModelHingeController(SlipController):
                                    - g.orientation_integral * self._integral))
         mu = self._c.mu_c * (1.0 if slip.slipping else self._static_ratio)
         f = max(math.hypot(ft, torque / r) / mu, ft / (self._c.mu_c * g.max_load_ratio))
-        f *= 1.0 + g.rotation_damping * abs(slip.rotation_rate)
+        excess = 0.0
+        if slip.slipping:
+            excess = max(0.0, slip.translation_speed - g.cor_offset * abs(slip.rotation_rate))
+        f *= 1.0 + g.rotation_damping * abs(slip.rotation_rate) + g.translation_gain * excess
         return min(max(f, self._p.model.min_force), self._p.model.max_force)
 
     def step(self, inputs: SensorSnapshot, t: float) -> ControlOutput:

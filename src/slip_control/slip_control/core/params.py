@@ -312,6 +312,12 @@ class ModelHingeParams:
     rotation_damping: float = _f(0.5, 's/rad', 0.0, 100.0,
                                  'relative force increase per observed rotation rate (damps '
                                  'a fast swing)')
+    translation_gain: float = _f(100.0, 's/m', 0.0, 100000.0,
+                                 'relative force increase per grasp-point translation speed '
+                                 'beyond cor_offset*|omega| while slipping (0 = off)')
+    cor_offset: float = _f(0.005, 'm', 1e-4, 0.1,
+                           'grasp-point translation per radian of turn the translation term '
+                           'tolerates')
     static_ratio: float = _f(1.3, '-', 1.0, 3.0,
                              'mu_s/mu_c assumed when the properties carry no valid mu_s')
     min_torque: float = _f(0.0005, 'N*m', 0.0, 1.0,
