@@ -38,10 +38,9 @@ the grasp point translates more than ``cor_offset`` per radian of turn (a centre
 the pad centre, fingers of very different friction). The integral ``∫e dt`` is limited to
 ``±integral_limit``.
 
-Measured on population seed 2026, objects 0–79 (estimated properties, truth as the judge):
-the law hinged 53 of the 56 feasible objects within 60 ± 6° and 10 mm; the previous
-force-ratio law hinged 36 of 63 (its swing towards hanging put the grasp point through
-10–30 mm on short levers).
+Measured on population seed 2026, 200 objects (estimated properties, truth as the judge): the
+law hinges 135 of the 144 feasible objects within 60 ± 6° and 10 mm; the previous force-ratio
+law's swing towards hanging put the grasp point through 10–30 mm on short levers.
 
 Refusals (`ModelHingeController.for_request`, before anything changes): no valid ``r``; no
 wrench measured; no torque measured (``|τ̄| < min_torque``: the centre of mass is on the
