@@ -208,6 +208,23 @@ class ControlOutput:
     reason: str = ''
 
 
+@dataclass(frozen=True, slots=True)
+class StepInputs:
+    """What a control step works on: a new, synchronised sample, combined in ``gripper_middle``.
+
+    Attributes:
+        status: Freshness and synchronisation of the inputs.
+        stamp: Finger-1 twist stamp that triggered the step [s].
+        wrench: Combined wrench in ``gripper_middle``.
+        twist: Combined slip twist in ``gripper_middle``.
+    """
+
+    status: InputStatus
+    stamp: float
+    wrench: MiddleWrench
+    twist: MiddleTwist
+
+
 class SlipController(ABC):
     """Common interface of the mode controllers.
 
@@ -293,6 +310,30 @@ class SlipController(ABC):
                              timeout=self._p.command_timeout, status=status,
                              safe_hold=safe_hold, reason=reason)
 
+    def _next_sample(self, inputs: SensorSnapshot, status: InputStatus
+                     ) -> ControlOutput | StepInputs:
+        """The wait every law shares: a new finger-1 sample with synchronised fingers, combined
+        in ``gripper_middle``; else the output that says why there is none (``_last_stamp``
+        stays, so the next good sample's ``dt`` spans a skipped one)."""
+        stamp = self._new_trigger(inputs)
+        if stamp is None:
+            return self._emit(None, status, 'no new sample')
+        if not status.synced:
+            return self._emit(None, status, 'finger velocities not synchronised')
+        assert inputs.wrench_1 is not None and inputs.wrench_2 is not None
+        assert inputs.twist_1 is not None and inputs.twist_2 is not None
+        frames = self._p.frames
+        return StepInputs(status, stamp,
+                          combine_wrenches(frames, inputs.wrench_1, inputs.wrench_2),
+                          combine_twists(frames, inputs.twist_1, inputs.twist_2))
+
+    def _advance_stamp(self, stamp: float) -> float | None:
+        """Record ``stamp`` as processed; the interval since the last one [s], or None on the
+        first sample or after a gap longer than ``dt_max``."""
+        dt = None if self._last_stamp is None else stamp - self._last_stamp
+        self._last_stamp = stamp
+        return dt if dt is not None and 0.0 < dt <= self._p.dt_max else None
+
     def _new_trigger(self, inputs: SensorSnapshot) -> float | None:
         """Stamp of the finger-1 twist if it was not processed yet, else ``None``."""
         tw = inputs.twist_1
@@ -365,17 +406,11 @@ class HoldController(SlipController):
             self._out = f if self._out is None else max(self._out, f)
             return self._emit(self._out, st, 'velocity stale: slip term 0, no decrease',
                               safe_hold=True)
-        stamp = self._new_trigger(inputs)
-        if stamp is None:
-            return self._emit(None, st, 'no new sample')
-        if not st.synced:
-            return self._emit(None, st, 'finger velocities not synchronised')
-        self._last_stamp = stamp
-        assert inputs.wrench_1 is not None and inputs.wrench_2 is not None
-        assert inputs.twist_1 is not None and inputs.twist_2 is not None
-        w = combine_wrenches(frames, inputs.wrench_1, inputs.wrench_2)
-        v = combine_twists(frames, inputs.twist_1, inputs.twist_2)
-        f_d = self.hold_force(w, v)
+        sample = self._next_sample(inputs, st)
+        if isinstance(sample, ControlOutput):
+            return sample
+        self._last_stamp = sample.stamp
+        f_d = self.hold_force(sample.wrench, sample.twist)
         out = self._out
         if out is None or f_d >= out:
             out = f_d
@@ -411,38 +446,15 @@ class HingeController(SlipController):
             out = hold.step(inputs, t)
             why = 'velocity stale' if not st.velocity_fresh else 'F/T stale'
             return replace(out, next_controller=hold, reason=f'HINGE ended: {why}')
-        stamp = self._new_trigger(inputs)
-        if stamp is None:
-            return self._emit(None, st, 'no new sample')
-        if not st.synced:
-            return self._emit(None, st, 'finger velocities not synchronised')
-        self._last_stamp = stamp
-        assert inputs.wrench_1 is not None and inputs.wrench_2 is not None
-        assert inputs.twist_1 is not None and inputs.twist_2 is not None
-        frames = self._p.frames
-        w = combine_wrenches(frames, inputs.wrench_1, inputs.wrench_2)
-        v = combine_twists(frames, inputs.twist_1, inputs.twist_2)
+        sample = self._next_sample(inputs, st)
+        if isinstance(sample, ControlOutput):
+            return sample
+        self._last_stamp = sample.stamp
+        w, v = sample.wrench, sample.twist
         h = self._p.hinge
         self._out = max(h.floor, h.threshold * w.tangential_force / self._c.mu_c
                         + h.slip_gain * v.speed)
         return self._emit(self._out, st)
-
-
-@dataclass(frozen=True, slots=True)
-class StepInputs:
-    """What a trajectory step works on once its inputs passed the common gates.
-
-    Attributes:
-        status: Freshness and synchronisation of the inputs.
-        stamp: Finger-1 twist stamp that triggered the step [s].
-        wrench: Combined wrench in ``gripper_middle``.
-        twist: Combined slip twist in ``gripper_middle``.
-    """
-
-    status: InputStatus
-    stamp: float
-    wrench: MiddleWrench
-    twist: MiddleTwist
 
 
 class TrajectoryController(SlipController):
@@ -599,17 +611,7 @@ class TrajectoryController(SlipController):
             return self._finish(inputs, t, False, 'velocity stale', t - self._t_start, None)
         if not st.ft_fresh:
             return self._finish(inputs, t, False, 'F/T stale', t - self._t_start, None)
-        stamp = self._new_trigger(inputs)
-        if stamp is None:
-            return self._emit(None, st, 'no new sample')
-        if not st.synced:
-            # Leave _last_stamp alone: the next good sample's dt spans this one.
-            return self._emit(None, st, 'finger velocities not synchronised')
-        assert inputs.wrench_1 is not None and inputs.wrench_2 is not None
-        assert inputs.twist_1 is not None and inputs.twist_2 is not None
-        frames = self._p.frames
-        return StepInputs(st, stamp, combine_wrenches(frames, inputs.wrench_1, inputs.wrench_2),
-                          combine_twists(frames, inputs.twist_1, inputs.twist_2))
+        return self._next_sample(inputs, st)
 
     def _finish(self, inputs: SensorSnapshot, t: float, success: bool, message: str,
                 elapsed: float, track: TrackingRecord | None) -> ControlOutput:

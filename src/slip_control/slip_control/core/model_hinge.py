@@ -58,7 +58,7 @@ from slip_control.core.controllers import ControlContact, ControlOutput, SlipCon
 from slip_control.core.model_hold import MODEL_LAW, LoadFilter, ModelHoldController, observer_config
 from slip_control.core.model_trajectory import RequestRefused
 from slip_control.core.params import SlipControllerParams
-from slip_control.core.signals import SensorSnapshot, combine_twists, combine_wrenches
+from slip_control.core.signals import SensorSnapshot, combine_wrenches
 from slip_control.core.twist_observer import SlipEstimate, TwistObserver
 
 #: What the law needs of the contact properties (for the request check).
@@ -209,22 +209,13 @@ class ModelHingeController(SlipController):
             out = hold.step(inputs, t)
             why = 'velocity stale' if not st.velocity_fresh else 'F/T stale'
             return replace(out, next_controller=hold, reason=f'HINGE ended: {why}')
-        stamp = self._new_trigger(inputs)
-        if stamp is None:
-            return self._emit(None, st, 'no new sample')
-        if not st.synced:
-            return self._emit(None, st, 'finger velocities not synchronised')
-        dt = None if self._last_stamp is None else stamp - self._last_stamp
-        if dt is not None and not 0.0 < dt <= self._p.dt_max:
-            dt = None
-        self._last_stamp = stamp
-        assert inputs.wrench_1 is not None and inputs.wrench_2 is not None
-        assert inputs.twist_1 is not None and inputs.twist_2 is not None
-        frames = self._p.frames
-        w = combine_wrenches(frames, inputs.wrench_1, inputs.wrench_2)
-        v = combine_twists(frames, inputs.twist_1, inputs.twist_2)
-        slip = self._observer.update(v, stamp)
-        fx, fy, tz = self._load.update(w, dt)
+        sample = self._next_sample(inputs, st)
+        if isinstance(sample, ControlOutput):
+            return sample
+        dt = self._advance_stamp(sample.stamp)
+        v = sample.twist
+        slip = self._observer.update(v, sample.stamp)
+        fx, fy, tz = self._load.update(sample.wrench, dt)
         if self._tau_ref is None:
             self._tau_ref = tz
         self._track_orientation(fx, fy, v.omega, dt)

@@ -42,8 +42,7 @@ from collections import deque
 from slip_control.core.controllers import ControlContact, ControlOutput, SlipController, SlipMode
 from slip_control.core.model_trajectory import MODEL_LAW
 from slip_control.core.params import SlipControllerParams
-from slip_control.core.signals import (MiddleTwist, MiddleWrench, SensorSnapshot,
-                                       combine_twists, combine_wrenches)
+from slip_control.core.signals import MiddleWrench, SensorSnapshot, combine_wrenches
 from slip_control.core.twist_observer import SlipEstimate, TwistObserver, TwistObserverConfig
 
 
@@ -207,24 +206,16 @@ class ModelHoldController(SlipController):
             self._stale_hold(inputs)
             return self._emit(self._out, st, 'velocity stale: slip term 0, no decrease',
                               safe_hold=True)
-        stamp = self._new_trigger(inputs)
-        if stamp is None:
-            return self._emit(None, st, 'no new sample')
-        if not st.synced:
-            return self._emit(None, st, 'finger velocities not synchronised')
-        dt = None if self._last_stamp is None else stamp - self._last_stamp
-        if dt is not None and not 0.0 < dt <= self._p.dt_max:
-            dt = None
-        self._last_stamp = stamp
-        assert inputs.wrench_1 is not None and inputs.wrench_2 is not None
-        assert inputs.twist_1 is not None and inputs.twist_2 is not None
-        w = combine_wrenches(self._p.frames, inputs.wrench_1, inputs.wrench_2)
-        v: MiddleTwist = combine_twists(self._p.frames, inputs.twist_1, inputs.twist_2)
-        slip = self._observer.update(v, stamp)
+        sample = self._next_sample(inputs, st)
+        if isinstance(sample, ControlOutput):
+            return sample
+        dt = self._advance_stamp(sample.stamp)
+        w, v = sample.wrench, sample.twist
+        slip = self._observer.update(v, sample.stamp)
         self._learn(slip, dt)
         r = self._c.r_guarded if self._c.r_valid else None
         self._need = self._load.load(w, dt, r) / self._c.mu_c
-        sustained = self._sustained.update(stamp, self._need)
+        sustained = self._sustained.update(sample.stamp, self._need)
         memory = self._remember(sustained, dt)
         f_d = self.hold_force(self._need, memory, slip)
         out = self._out
