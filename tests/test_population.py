@@ -68,12 +68,6 @@ MODEL = 'model'
 #: fixed population; `slip_evaluate --object 15:<index> --controllers model` shows the run).
 KNOWN_MISSES: dict[tuple[int, str], str] = {
     (5, 'estimation'): 'finger 2 mu_c off by -0.0102 (limit 0.01)',
-    (5, 'hinge'): 'rotation 75.8 deg of 60 (lightest object)',
-    (36, 'linear'): 'tracking RMS 1.11 mm (limit 1 mm); fingers differ most (mu 0.26 vs 0.89)',
-    (36, 'hinge'): 'grasp point translated 13.3 mm (limit 10 mm)',
-    (122, 'hold'): 'force peak 40.0 N > 1.5 x 26.2 N needed + 1 N (the gripper ceiling)',
-    (4, 'hinge'): 'grasp point translated 17.9 mm on a gradient map (centre of pressure off '
-                  'the pad centre)',
 }
 
 

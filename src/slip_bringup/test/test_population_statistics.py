@@ -2,6 +2,7 @@
 """Population statistics, feasibility criteria and the local backend (no ROS)."""
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import pytest
@@ -10,7 +11,7 @@ from friction_models.core.population import PopulationRanges, draw_object, draw_
 from friction_models.core.presets import ContactPreset, ObjectPreset
 
 from slip_bringup.population.backends import run_local
-from slip_bringup.population.feasibility import assess, hold_force_needed
+from slip_bringup.population.feasibility import assess, hold_force_needed, hold_force_needed_held
 from slip_bringup.population.statistics import best_split, distribution, wilson_interval
 
 
@@ -117,3 +118,31 @@ def test_local_backend_keeps_item_order_with_workers() -> None:
                     progress=lambda done, total: seen.append((done, total)))
     assert out == [i * i for i in range(7)]
     assert seen[-1] == (7, 7) and len(seen) == 7
+
+
+def test_hold_need_follows_the_pose_the_object_is_held_in() -> None:
+    # CoM 30 mm straight below: upright the weight has no lever; turned 90° in the pads the
+    # lever is horizontal and the need is the weight's full twist.
+    below = _box(1.0, 0.5, 0.005, (0.0, -0.03))
+    w = 9.81
+    assert hold_force_needed(below, [], rotation=0.0) == pytest.approx(w)
+    assert hold_force_needed(below, [], rotation=math.pi / 2) == pytest.approx(
+        math.hypot(w, w * 0.03 / 0.005))
+    # Held after turning 90°: the weight is counted on the way there (the horizontal lever is
+    # the worst pose), the loads where the object is.
+    held = hold_force_needed_held(below, [(0.0, -1.0, 0.0)], math.pi / 2)
+    assert held == pytest.approx(math.hypot(w + 1.0, (w + 1.0) * 0.03 / 0.005))
+    halfway = hold_force_needed_held(below, [], math.pi / 4)
+    assert halfway == pytest.approx(hold_force_needed(below, [], rotation=math.pi / 4))
+
+
+def test_hinge_feasibility_counts_the_rotation_centre_of_both_maps() -> None:
+    # The same short lever is feasible on centred maps and not on a gradient map whose
+    # centre of rotation lies off the grasp point.
+    c = ContactPreset(mu_c=0.5, mu_s=0.55, mu_v=0.0, r=0.008)
+    base = ObjectPreset(name='h', mass=0.15, inertia=1e-4, com_offset=(0.0, -0.014),
+                        width=0.05, height_below=0.08, height_above=0.06, thickness=0.03,
+                        surface='circle', finger_1=c, finger_2=c)
+    assert assess(base, []).hinge == ''
+    gradient = dataclasses.replace(base, surface='line_grad')
+    assert assess(gradient, []).hinge.startswith('lever too short: ')

@@ -99,18 +99,23 @@ def _hold(params: SlipControllerParams, snap: Snap, loads: list[tuple[float, flo
 
 def test_model_hold_law_hand_computed(params: SlipControllerParams, snap: Snap) -> None:
     h = ModelHoldController(params, CONTACT)
+    hm = params.hold_model
     # F̄ = (0.3, −0.4) → 0.5 N; τ̄/r = 0.002/0.005 = 0.4 N → D = √0.41 = 0.6403 N;
-    # need = D/0.4 = 1.6008 N; 1.5·need + 0.5 N = 2.9012 N (below the bound 1.5·need + 0.9).
+    # need = D/0.4 = 1.6008 N; margin·need + extra_force (below the bound
+    # max_margin·need + max_extra_force).
     out = h.step(snap(1.0, f=(0.3, -0.4), tz=0.002), 1.0)
     assert out.mode == SlipMode.HOLD and not out.safe_hold
-    assert out.force == pytest.approx(1.5 * math.sqrt(0.41) / 0.4 + 0.5, rel=1e-9)
+    assert out.force == pytest.approx(hm.margin * math.sqrt(0.41) / 0.4 + hm.extra_force,
+                                      rel=1e-9)
     assert h.needed_force == pytest.approx(math.sqrt(0.41) / 0.4, rel=1e-9)
 
 
 def test_model_hold_clamps_to_the_gripper_range(params: SlipControllerParams,
                                                 snap: Snap) -> None:
+    hm = params.hold_model
     _, light = _hold(params, snap, [(0.0, -0.01)] * 3)
-    assert light[-1] == pytest.approx(max(1.5 * 0.01 / 0.4 + 0.5, params.model.min_force))
+    assert light[-1] == pytest.approx(max(hm.margin * 0.01 / 0.4 + hm.extra_force,
+                                          params.model.min_force))
     low = replace(params, hold_model=replace(params.hold_model, extra_force=0.0))
     _, tiny = _hold(low, snap, [(0.0, -0.01)] * 3)
     assert tiny[-1] == pytest.approx(params.model.min_force)
@@ -122,15 +127,16 @@ def test_model_hold_ignores_a_tap_but_follows_a_sustained_load(params: SlipContr
                                                                snap: Snap) -> None:
     rest, high = (0.0, -1.0), (0.0, -3.0)
     need_rest, need_high = _need(rest, 0.0), _need(high, 0.0)
-    bound_rest = 1.5 * need_rest + 0.9
+    hm = params.hold_model
+    bound_rest = hm.max_margin * need_rest + hm.max_extra_force
     # A 17 ms tap (two samples) of three times the load: the force stays within the bound
     # set by the sustained load, far below what the tap's load would ask for.
     _, tap = _hold(params, snap, [rest] * 30 + [high] * 2 + [rest] * 30)
     assert max(tap) <= bound_rest + 1e-9
-    assert max(tap) < 1.5 * need_high
+    assert max(tap) < hm.margin * need_high
     # The same load sustained: after sustain_time the force is the law's for it.
     _, step = _hold(params, snap, [rest] * 30 + [high] * 30)
-    assert step[-1] == pytest.approx(1.5 * need_high + 0.5, rel=1e-6)
+    assert step[-1] == pytest.approx(hm.margin * need_high + hm.extra_force, rel=1e-6)
     k_bound = next(k for k, f in enumerate(step) if f > bound_rest + 1e-9)
     assert (k_bound - 30) * DT <= params.hold_model.sustain_time + 2 * DT
 
@@ -139,12 +145,13 @@ def test_model_hold_remembers_the_recent_load(params: SlipControllerParams,
                                               snap: Snap) -> None:
     high, rest = (0.0, -3.0), (0.0, -1.0)
     _, out = _hold(params, snap, [high] * 30 + [rest] * 60)     # 0.5 s after the load fell
-    f_high = 1.5 * _need(high, 0.0) + 0.5
-    mem = params.hold_model.memory_time
-    # The remembered need decays with memory_time (5 s), not with fall_time (0.3 s).
+    hm = params.hold_model
+    f_high = hm.margin * _need(high, 0.0) + hm.extra_force
+    mem = hm.memory_time
+    # The remembered need decays with memory_time (seconds), not with fall_time (0.3 s).
     assert out[29] == pytest.approx(f_high, rel=1e-6)
-    assert out[-1] > 1.5 * (_need(rest, 0.0) + (_need(high, 0.0) - _need(rest, 0.0))
-                            * math.exp(-0.6 / mem)) + 0.5 - 0.05
+    assert out[-1] > hm.margin * (_need(rest, 0.0) + (_need(high, 0.0) - _need(rest, 0.0))
+                                  * math.exp(-0.6 / mem)) + hm.extra_force - 0.05
     assert out[-1] < f_high
 
 
@@ -162,8 +169,9 @@ def test_model_hold_reacts_to_observed_slip_and_learns(params: SlipControllerPar
     assert outs[2] > f0 + 0.05                # incipient slip: more force within 3 samples
     assert h.learned_margin > 0.0             # beyond the 1 mm dead zone: the margin grows
     need = _need(load, 0.0)
-    assert outs[-1] > 1.5 * need + 0.9        # ... and lifts the bound
-    assert outs[-1] <= (1.5 + h.learned_margin) * need + 0.9 + 1e-9
+    hm = params.hold_model
+    assert outs[-1] > hm.max_margin * need + hm.max_extra_force        # ... and lifts the bound
+    assert outs[-1] <= (hm.max_margin + h.learned_margin) * need + hm.max_extra_force + 1e-9
 
 
 def test_model_hold_stale_rules(params: SlipControllerParams, snap: Snap) -> None:
@@ -177,7 +185,9 @@ def test_model_hold_stale_rules(params: SlipControllerParams, snap: Snap) -> Non
     # A larger load while the velocity is stale: the force rises at once.
     t = 2.0
     o = h.step(snap(1.0 + 4 * DT, f=(0.0, -6.0), ft_stamp=t), t)
-    assert o.safe_hold and o.force == pytest.approx(1.5 * _need((0.0, -6.0), 0.0) + 0.5)
+    hm = params.hold_model
+    assert o.safe_hold and o.force == pytest.approx(hm.margin * _need((0.0, -6.0), 0.0)
+                                                    + hm.extra_force)
     # F/T stale: hold the last output.
     o = h.step(snap(3.0, f=(0.0, -0.1), ft_stamp=2.5), 3.0)
     assert o.safe_hold and o.reason.startswith('F/T stale')

@@ -30,9 +30,13 @@ limit surface, docs/control_and_estimation.md).
 * HINGE through ``turn`` from the pose ``turn`` from hanging (`poses.hinge_start_turn`):
   holding every pose on the way there must be possible (torque ``W·d·|sin γ|`` at the largest
   hanging angle ``γ`` passed); a hinge keeps the object where it is, ``γ₀ = turn`` from
-  hanging, while the gripper turns around it: the weight's torque ``W·d·sin γ₀`` is all that
-  turns the pads, so the grasp point translates at least ``turn·r̄²/(d·sin γ₀)`` (CoR on the
-  limit surface), which must stay within ``hinge_translation_limit/margin``; static friction
+  hanging, while the gripper turns around it: the weight and its torque are all that turns
+  the pads, so the object turns relative to them about the centre of rotation at which the
+  Coulomb friction of both pressure maps balances that load (`grasp_geometry`: a gradient
+  map, or two maps whose centres of pressure sit apart, move it off the grasp point; for one
+  centred map it lies about ``r̄²/(d·sin γ₀)`` beside it). The grasp-point translation this
+  gives over the turn (`grasp_geometry.hinge_translation`) must stay within
+  ``hinge_translation_limit/margin``; static friction
   above kinetic must let the pads break loose in rotation at a force that still carries the
   weight, ``F* = max(min_force, W/(μ₁ + μ₂))``, where the static torque capacity left is
   ``r̄·√(((μs₁ + μs₂)·F*)² − W²)``: ``W·d·sin γ₀`` must exceed it by the margin (below it, the
@@ -48,6 +52,7 @@ from dataclasses import dataclass
 from friction_models.core.presets import ObjectPreset
 
 from slip_bringup.core.evaluation.poses import hinge_start_turn, path_sin_max
+from slip_bringup.population.grasp_geometry import hinge_translation
 
 
 @dataclass(frozen=True)
@@ -82,16 +87,20 @@ class Feasibility:
 Load = tuple[float, float, float]
 
 
-def hold_force_needed(obj: ObjectPreset, loads: Sequence[Load], g: float = 9.81) -> float:
-    """Grasp force that holds ``obj`` as picked up under its weight and each sustained load.
+def hold_force_needed(obj: ObjectPreset, loads: Sequence[Load], g: float = 9.81,
+                      rotation: float = 0.0) -> float:
+    """Grasp force that holds ``obj`` under its weight and each sustained load.
 
-    ``loads``: ``(fx, fy, torque)`` at the CoM (``gripper_middle`` axes, object upright). The
+    ``loads``: ``(fx, fy, torque)`` at the CoM (``gripper_middle`` axes). ``rotation`` [rad]:
+    the object's rotation in the pads (+z), 0 = as picked up; the CoM offset turns with it. The
     result is the largest ``√(|L|² + (M/r̄)²)/(μ₁ + μ₂)`` [N] over the weight alone and the
     weight with each load, ``M`` taken about the grasp point (module docstring).
     """
     mu = obj.finger_1.mu_c + obj.finger_2.mu_c
     r = 0.5 * (obj.finger_1.r + obj.finger_2.r)
-    cx, cy = obj.com_offset
+    c, s = math.cos(rotation), math.sin(rotation)
+    x0, y0 = obj.com_offset
+    cx, cy = c * x0 - s * y0, s * x0 + c * y0
     weight = obj.mass * g
     need = 0.0
     for fx, fy, torque in [(0.0, 0.0, 0.0), *loads]:
@@ -99,6 +108,18 @@ def hold_force_needed(obj: ObjectPreset, loads: Sequence[Load], g: float = 9.81)
         moment = torque + cx * ly - cy * lx
         need = max(need, math.hypot(lx, ly, moment / r) / mu)
     return need
+
+
+def hold_force_needed_held(obj: ObjectPreset, loads: Sequence[Load], rotation: float,
+                           g: float = 9.81, steps: int = 30) -> float:
+    """`hold_force_needed` for the pose the object is really held in (the HOLD judge).
+
+    An object whose CoM is off to the side turns in the pads by ``rotation`` [rad] (truth)
+    before the grasp holds it, and its lever then differs from the drawn one: the weight is
+    counted at every pose from 0 to ``rotation``, and the loads at ``rotation``.
+    """
+    still = max(hold_force_needed(obj, (), g, rotation * k / steps) for k in range(steps + 1))
+    return max(still, hold_force_needed(obj, loads, g, rotation))
 
 
 def assess(obj: ObjectPreset, loads: Sequence[Load],
@@ -143,12 +164,12 @@ def assess(obj: ObjectPreset, loads: Sequence[Load],
                       'minimum force')
     else:
         rotational = ''
-    turn, _ = hinge_start_turn(obj.com_offset, limits.hinge_turn)
+    turn, sign = hinge_start_turn(obj.com_offset, limits.hinge_turn)
     on_the_way = tilted(path_sin_max(obj.com_offset, turn),
                         f'the poses on the way to {math.degrees(limits.hinge_turn):.0f} deg '
                         'from hanging')
     arm = lever * math.sin(limits.hinge_turn)        # d·sin γ₀ at the hinge pose
-    drag = limits.hinge_turn * r * r / arm if arm > 0.0 else math.inf
+    drag = hinge_translation(obj, turn, sign * limits.hinge_turn) if arm > 0.0 else math.inf
     rho = (c1.mu_s + c2.mu_s) / mu
     carry = max(limits.min_force, weight / mu)       # least force that carries the weight
     stuck = r * math.sqrt(max(0.0, ((c1.mu_s + c2.mu_s) * carry) ** 2 - weight ** 2)) / weight
@@ -156,8 +177,8 @@ def assess(obj: ObjectPreset, loads: Sequence[Load],
         hinge = hold_ok or on_the_way
     elif drag * m > limits.hinge_translation_limit:
         hinge = (f'lever too short: a hinge through {math.degrees(limits.hinge_turn):.0f} deg '
-                 f'drags the grasp point >= {drag * 1e3:.1f} mm (lever {lever * 1e3:.1f} mm, '
-                 f'r {r * 1e3:.1f} mm)')
+                 f'drags the grasp point {drag * 1e3:.1f} mm on the limit surface (lever '
+                 f'{lever * 1e3:.1f} mm, r {r * 1e3:.1f} mm, pressure map {obj.surface})')
     elif arm <= stuck * m:
         hinge = (f'static friction too high: at the hinge pose the weight\'s lever '
                  f'{arm * 1e3:.1f} mm cannot break the pads loose in rotation while they carry '

@@ -264,9 +264,9 @@ class TwistObserverParams:
 class ModelHoldParams:
     """(addition) HOLD with the ``model`` law (model_hold): the force the measured load needs."""
 
-    margin: float = _f(1.5, '-', 1.0, 10.0, 'factor on the limit-surface force D/mu_c')
-    extra_force: float = _f(0.5, 'N', 0.0, 40.0, 'force added to margin*D/mu_c')
-    max_margin: float = _f(1.5, '-', 1.0, 10.0,
+    margin: float = _f(1.45, '-', 1.0, 10.0, 'factor on the limit-surface force D/mu_c')
+    extra_force: float = _f(0.7, 'N', 0.0, 40.0, 'force added to margin*D/mu_c')
+    max_margin: float = _f(1.45, '-', 1.0, 10.0,
                            'the force stays below (max_margin + learned margin) times the '
                            'remembered sustained D/mu_c, plus max_extra_force')
     max_extra_force: float = _f(0.9, 'N', 0.0, 40.0, 'see max_margin')
@@ -286,7 +286,7 @@ class ModelHoldParams:
     sustain_time: float = _f(0.05, 's', 0.0, 1.0,
                              'a load counts as sustained once it lasted this long (a shorter '
                              'tap does not raise the force bound)')
-    memory_time: float = _f(5.0, 's', 0.0, 3600.0,
+    memory_time: float = _f(20.0, 's', 0.0, 3600.0,
                             'time constant of the decay of the remembered sustained need')
     fall_time: float = _f(0.3, 's', 0.0, 60.0, 'time constant of a force decrease')
 

@@ -7,6 +7,7 @@ from dataclasses import dataclass
 
 from slip_bringup.core.evaluation.scene import controlled_scene
 from slip_bringup.core.evaluation.settings import EvalSettings
+from slip_bringup.core.evaluation.truth import centre_point_displacement
 from slip_control.core.contact import ContactProperties
 from slip_control.core.controllers import SlipMode, SlipResult
 from slip_control.core.mode_switch import ModeRequest
@@ -83,6 +84,7 @@ def stream_fault(preset: str, stream: str, at: float, distance: float = 0.02,
         result=ended[0] if ended else None, mode_after=ctl.mode,
         force_at_cut=before[-1] if before else _NAN,
         force_after=ctl.commands[-1][1] if ctl.commands else _NAN,
-        slip_after=probe.peak_displacement(t_cut, h.t, s_cut.x, s_cut.y),
-        creep=math.hypot(s.x - s_late.x, s.y - s_late.y), dropped=s.dropped,
+        slip_after=probe.peak_displacement(t_cut, h.t, s_cut.x, s_cut.y, s_cut.theta),
+        creep=math.hypot(*centre_point_displacement(
+            s_late.x, s_late.y, s_late.theta, s.x, s.y, s.theta)), dropped=s.dropped,
         deferred_steps=ctl.host.steps_deferred - deferred_before)

@@ -9,6 +9,7 @@ from dataclasses import dataclass
 from slip_bringup.core.evaluation.poses import hinge_start_turn
 from slip_bringup.core.evaluation.scene import controlled_scene
 from slip_bringup.core.evaluation.settings import EvalSettings
+from slip_bringup.core.evaluation.truth import centre_point_displacement
 from slip_control.core.contact import ContactProperties
 from slip_control.core.controllers import SlipMode
 from slip_control.core.mode_switch import ModeRequest
@@ -93,6 +94,7 @@ def hinge(preset: str, turn: float = math.radians(60.0), settings: EvalSettings 
     return HingeOutcome(
         preset=preset, gripper_turn=turn, swing=s1.theta - s_on.theta,
         relative_rotation=s2.theta - s1.theta, object_turn=s2.object_theta - s1.object_theta,
-        translation_peak=probe.peak_displacement(t_on, h.t, s_on.x, s_on.y),
-        translation_turn=math.hypot(s2.x - s1.x, s2.y - s1.y), force_min=min(forces),
+        translation_peak=probe.peak_displacement(t_on, h.t, s_on.x, s_on.y, s_on.theta),
+        translation_turn=math.hypot(*centre_point_displacement(
+            s1.x, s1.y, s1.theta, s2.x, s2.y, s2.theta)), force_min=min(forces),
         force_max=max(forces), dropped=s3.dropped)

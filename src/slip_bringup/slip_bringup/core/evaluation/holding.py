@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 from slip_bringup.core.evaluation.scene import controlled_scene
 from slip_bringup.core.evaluation.settings import EvalSettings
+from slip_bringup.core.evaluation.truth import centre_point_displacement
 from slip_control.core.contact import ContactProperties
 from slip_control.core.controllers import SlipMode
 from slip_control.core.mode_switch import ModeRequest
@@ -60,7 +61,7 @@ def pick_up(preset: str, settings: EvalSettings = EvalSettings(),
     s = h.state()
     forces = ctl.forces_between(t0, h.t) or [_NAN]
     return PickUpOutcome(preset=preset, lift=s.object_y - y0,
-                         slip_peak=probe.peak_displacement(t0, h.t, s0.x, s0.y),
+                         slip_peak=probe.peak_displacement(t0, h.t, s0.x, s0.y, s0.theta),
                          rotation_peak=probe.peak_rotation(t0, h.t, s0.theta),
                          force_min=min(forces), force_max=max(forces),
                          normal_force_final=s.normal_force_1, dropped=s.dropped)
@@ -156,6 +157,8 @@ class HoldOutcome:
         dropped: The object fell.
         force_max_settle: Largest commanded force from HOLD on to the first push [N] (the
             HOLD law taking up the object's weight).
+        rotation_held: The object's rotation in the pads before the first push [rad] (+z; 0 =
+            as placed between the pads): the pose the loads act in.
     """
 
     preset: str
@@ -170,6 +173,7 @@ class HoldOutcome:
     force_max: float
     dropped: bool
     force_max_settle: float = _NAN
+    rotation_held: float = 0.0
 
 
 def hold_under_disturbance(preset: str, pushes: Sequence[Push] = DEFAULT_PUSHES,
@@ -186,16 +190,17 @@ def hold_under_disturbance(preset: str, pushes: Sequence[Push] = DEFAULT_PUSHES,
         sp = h.state()
         h.disturb(p.fx, p.fy, p.torque, p.duration)
         h.run_for(p.duration + p.pause)
-        per_push.append(probe.peak_displacement(ts, h.t, sp.x, sp.y))
+        per_push.append(probe.peak_displacement(ts, h.t, sp.x, sp.y, sp.theta))
     s = h.state()
     forces = ctl.forces_between(t0, h.t) or [_NAN]
     taps = [d for p, d in zip(pushes, per_push) if p.duration < TAP_MAX_DURATION]
     sustained = [d for p, d in zip(pushes, per_push) if p.duration >= TAP_MAX_DURATION]
     return HoldOutcome(preset=preset, pushes=tuple(pushes),
-                       slip_peak=probe.peak_displacement(t0, h.t, s0.x, s0.y),
+                       slip_peak=probe.peak_displacement(t0, h.t, s0.x, s0.y, s0.theta),
                        rotation_peak=probe.peak_rotation(t0, h.t, s0.theta),
-                       slip_final=math.hypot(s.x - s0.x, s.y - s0.y), push_slip=tuple(per_push),
+                       slip_final=math.hypot(*centre_point_displacement(
+                           s0.x, s0.y, s0.theta, s.x, s.y, s.theta)), push_slip=tuple(per_push),
                        sustained_slip=max(sustained, default=0.0),
                        tap_slip=max(taps, default=0.0), force_min=min(forces),
                        force_max=max(forces), dropped=s.dropped,
-                       force_max_settle=max(settle_forces))
+                       force_max_settle=max(settle_forces), rotation_held=s0.theta)

@@ -35,7 +35,8 @@ def make_harness(preset: str, settings: EvalSettings = EvalSettings()) -> Harnes
         KeyError: Unknown preset (the message lists the known ones).
     """
     params = SimParams(physics_dt=settings.physics_dt, seed=settings.seed,
-                       velocity_sensor=VelocitySensorParams(model=settings.velocity_model))
+                       velocity_sensor=VelocitySensorParams(model=settings.velocity_model),
+                       reset_grasp_force=settings.reset_grasp_force)
     if settings.sensors is not None:
         s, ft = settings.sensors, params.ft
         params = replace(params, ft=replace(

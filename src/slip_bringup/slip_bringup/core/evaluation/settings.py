@@ -33,6 +33,9 @@ class EvalSettings:
         chunk: Harness chunk [s]: the transport latency between a sensor event and a command.
         watchdog_period: Period of the controller's watchdog step [s] (the node's).
         settle: HOLD time before a controller scenario starts [s].
+        reset_grasp_force: Grasp force the object is held with in the air before HOLD takes
+            over [N] (the simulator's ``reset_grasp_force``); an object that needs more swings
+            in the pads before HOLD catches it.
         presets_file: Extra presets YAML (friction_models format); '' = reference objects only.
         objects: Extra object presets by name (e.g. drawn by the population evaluation); they
             are added to the reference objects and those of ``presets_file``.
@@ -52,6 +55,7 @@ class EvalSettings:
     chunk: float = 1.0e-3
     watchdog_period: float = WATCHDOG_PERIOD_S
     settle: float = 1.0
+    reset_grasp_force: float = 10.0
     presets_file: str = ''
     objects: Mapping[str, ObjectPreset] = field(default_factory=dict)
     sensors: SensorVariation | None = None

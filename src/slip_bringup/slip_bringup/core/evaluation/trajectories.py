@@ -17,7 +17,8 @@ from slip_bringup.core.evaluation.agents import ControllerAgent
 from slip_bringup.core.evaluation.poses import lever_horizontal_turn, turn_to_hanging_angle
 from slip_bringup.core.evaluation.scene import controlled_scene, gravity_in_middle
 from slip_bringup.core.evaluation.settings import EvalSettings
-from slip_bringup.core.evaluation.truth import TruthProbe, interp_progress
+from slip_bringup.core.evaluation.truth import (TruthProbe, centre_point_displacement,
+                                                interp_progress)
 from slip_control.core.contact import ContactProperties
 from slip_control.core.controllers import SlipMode, SlipResult
 from slip_control.core.mode_switch import ModeRequest
@@ -144,14 +145,20 @@ def linear_slip(preset: str, distance: float = 0.02, duration: float = 2.0,
                           latch_direction=latch_direction)
 
     def along(i: int) -> float:
-        return (probe.x[i] - s0.x) * gx + (probe.y[i] - s0.y) * gy
+        dx, dy = probe.displacement(i, s0.x, s0.y, s0.theta)
+        return dx * gx + dy * gy
 
     t0, errors, result, result_time, forces = _run_trajectory(
         h, ctl, probe, request, along, duration + 1.5)
     s = h.state()
-    achieved = (s.x - s0.x) * gx + (s.y - s0.y) * gy
-    side = max((abs((probe.x[i] - s0.x) * gy - (probe.y[i] - s0.y) * gx)
-                for i in probe.indices(t0, h.t)), default=0.0)
+    dx, dy = centre_point_displacement(s0.x, s0.y, s0.theta, s.x, s.y, s.theta)
+    achieved = dx * gx + dy * gy
+
+    def sideways(i: int) -> float:
+        ex, ey = probe.displacement(i, s0.x, s0.y, s0.theta)
+        return abs(ex * gy - ey * gx)
+
+    side = max((sideways(i) for i in probe.indices(t0, h.t)), default=0.0)
     rms, worst = _truth_tracking(probe, along, t0, distance, duration,
                                  settings.controller.trajectory.accel_fraction)
     return TrajectoryOutcome(
@@ -218,7 +225,8 @@ def rotational_slip(preset: str, angle: float = math.radians(20.0), duration: fl
     return TrajectoryOutcome(
         preset=preset, mode=SlipMode.ROTATIONAL, target=angle, duration=duration,
         achieved=achieved, final_error=abs(angle) - achieved,
-        off_axis=probe.peak_displacement(t0, h.t, s0.x, s0.y), tracking_rms=_rms(errors),
+        off_axis=probe.peak_displacement(t0, h.t, s0.x, s0.y, s0.theta),
+        tracking_rms=_rms(errors),
         tracking_max=max((abs(e) for e in errors), default=_NAN), result=result,
         result_time=result_time, force_min=min(forces), force_max=max(forces),
         dropped=s.dropped, trajectory_rms=rms, trajectory_max=worst)

@@ -11,6 +11,22 @@ from friction_models.core.sensors import TelemetrySample
 _NAN = math.nan
 
 
+def centre_point_displacement(x0: float, y0: float, theta0: float, x: float, y: float,
+                              theta: float) -> tuple[float, float]:
+    """Displacement ``(dx, dy)`` [m, ``gripper_middle`` axes] of the object point that sat at
+    the gripper centre at a reference instant.
+
+    The truth tracks one material point, the one at the gripper centre when the grasp closed;
+    after earlier slips it lies ``(x0, y0)`` off the centre, and a rotation relative to the pads
+    alone would carry it on a circle (an apparent translation of ``2·|(x0, y0)|·sin(Δθ/2)``).
+    The object moves rigidly in the pad frame, so the point that was at the centre when the
+    tracked point was at ``(x0, y0)`` with relative rotation ``theta0`` [rad] is now at
+    ``(x, y) − R(θ − θ0)·(x0, y0)``.
+    """
+    c, s = math.cos(theta - theta0), math.sin(theta - theta0)
+    return x - (c * x0 - s * y0), y - (s * x0 + c * y0)
+
+
 class TruthProbe:
     """Samples the simulator truth on every ``every``-th telemetry line (lists, SI)."""
 
@@ -62,10 +78,16 @@ class TruthProbe:
                 hi = mid
         return min(lo, len(self.t) - 1)
 
-    def peak_displacement(self, t0: float, t1: float, x0: float, y0: float) -> float:
-        """Largest ``‖(x, y) − (x0, y0)‖`` in the window [m]."""
-        return max((math.hypot(self.x[i] - x0, self.y[i] - y0) for i in self.indices(t0, t1)),
-                   default=0.0)
+    def displacement(self, i: int, x0: float, y0: float, theta0: float) -> tuple[float, float]:
+        """`centre_point_displacement` at row ``i`` from the reference ``(x0, y0, theta0)``."""
+        return centre_point_displacement(x0, y0, theta0, self.x[i], self.y[i], self.theta[i])
+
+    def peak_displacement(self, t0: float, t1: float, x0: float, y0: float,
+                          theta0: float) -> float:
+        """Largest displacement [m] in the window of the object point that was at the gripper
+        centre at the reference ``(x0, y0, theta0)`` (`centre_point_displacement`)."""
+        return max((math.hypot(*self.displacement(i, x0, y0, theta0))
+                    for i in self.indices(t0, t1)), default=0.0)
 
     def peak_rotation(self, t0: float, t1: float, th0: float) -> float:
         """Largest ``|θ − θ0|`` in the window [rad]."""
