@@ -38,9 +38,10 @@ the grasp point translates more than ``cor_offset`` per radian of turn (a centre
 the pad centre, fingers of very different friction). The integral ``∫e dt`` is limited to
 ``±integral_limit``.
 
-Measured on population seed 2026, 200 objects (estimated properties, truth as the judge): the
-law hinges 135 of the 144 feasible objects within 60 ± 6° and 10 mm; the previous force-ratio
-law's swing towards hanging put the grasp point through 10–30 mm on short levers.
+Measured by the population evaluation (estimated properties, truth as the judge; figures in
+docs/model_slip_control.md §5a): seed 2026, all 133 feasible objects within 60 ± 6° and 10 mm;
+seed 777, 135 of 141. The previous force-ratio law's swing towards hanging put the grasp point
+through 10–30 mm on short levers.
 
 Refusals (`ModelHingeController.for_request`, before anything changes): no valid ``r``; no
 wrench measured; no torque measured (``|τ̄| < min_torque``: the centre of mass is on the
