@@ -13,13 +13,16 @@ exceed either pad's own ``r``.
 
 HINGE (the object keeps its place in the world while the gripper turns around it, slowly):
 the pads carry the weight ``W`` and its torque, so the object turns relative to them about
-the centre of rotation (CoR) at which the Coulomb friction of both maps, summed cell by cell,
-balances exactly that load (`slip_centre`; a slip, so this does not depend on the grasp
-force). On an ellipsoidal limit surface that point would lie ``r_j²/x`` beside the rotation
-centre, horizontally, on the far side from the CoM (``x`` the CoM's horizontal distance from
-the rotation centre); the cell-wise sum is used because a line contact's limit surface is
-far from an ellipsoid. `hinge_translation` follows that CoR through the turn and returns how
-far the object point at the gripper centre moves relative to the pads.
+the centre of rotation (CoR) at which the Coulomb friction of both pads balances exactly that
+load (`slip_centre`; a slip, so this does not depend on the grasp force). Each pad's friction
+for a twist comes from the simulator's own pre-computed limit surface of its map
+(`friction_models.core.limit_surface`, looked up at the pad's centre of pressure in its own
+frame), so the criterion uses the friction law the simulator integrates. On an ellipsoidal
+limit surface the CoR would lie ``r_j²/x`` beside the rotation centre, horizontally, on the
+far side from the CoM (``x`` the CoM's horizontal distance from the rotation centre; the
+search starts there); a line contact's surface is far from an ellipsoid. `hinge_translation`
+follows that CoR through the turn and returns how far the object point at the gripper centre
+moves relative to the pads.
 """
 from __future__ import annotations
 
@@ -30,10 +33,10 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from friction_models.core.limit_surface import characteristic_radius
+from friction_models.core.limit_surface import LimitSurface, LimitSurfaceCache
 from friction_models.core.presets import ObjectPreset
 from friction_models.core.surfaces import standard_surface
-from slip_cell_common.core.frames import FrameParams, planar_to_middle
+from slip_cell_common.core.frames import FrameParams, planar_from_middle, planar_to_middle
 
 
 @dataclass(frozen=True)
@@ -41,34 +44,50 @@ class PadPressure:
     """One pad's pressure map in ``gripper_middle`` (SI).
 
     Attributes:
+        finger: 1 or 2.
         mu_c: Kinetic friction coefficient of the pad [-].
+        radius: Characteristic radius of the pad about its centre of pressure [m].
+        cop: Centre of pressure in ``gripper_middle`` [m].
         x: Cell centres x [m] (cells with pressure only).
         y: Cell centres y [m].
         weight: Normalised pressure of each cell [-] (sums to 1).
+        table: The map's normalised limit surface (the simulator's).
+        frames: Frame constants the pad was placed with.
     """
 
+    finger: int
     mu_c: float
+    radius: float
+    cop: tuple[float, float]
     x: NDArray[np.float64]
     y: NDArray[np.float64]
     weight: NDArray[np.float64]
+    table: LimitSurface
+    frames: FrameParams
 
 
 def pad_pressures(obj: ObjectPreset, frames: FrameParams = FrameParams(), grid_n: int = 21,
-                  patch_size: float = 0.02) -> tuple[PadPressure, PadPressure]:
-    """Both pads' maps of ``obj`` in ``gripper_middle`` (the simulator's shape and scaling)."""
+                  patch_size: float = 0.02, n_ls: int = 20,
+                  cache: LimitSurfaceCache | None = None) -> tuple[PadPressure, PadPressure]:
+    """Both pads' maps of ``obj`` in ``gripper_middle`` (the simulator's shape, scaling and
+    limit-surface table; ``cache`` shares tables between calls)."""
     base = standard_surface(obj.surface, grid_n, patch_size)
-    radius = characteristic_radius(base, bilinear=True)
+    table = (cache if cache is not None else LimitSurfaceCache()).get(base, n_ls)
     xs, ys = base.cell_centres()
     p = np.asarray(base.pressure, dtype=np.float64)
     on = p > 0.0
     w = p[on] / float(np.sum(p[on]))
+    cop_x, cop_y = base.cop
     pads = []
     for finger, contact in ((1, obj.finger_1), (2, obj.finger_2)):
-        k = contact.r / radius
+        k = contact.r / table.r_a
         ax, ay, _ = planar_to_middle(frames, finger, 1.0, 0.0, 0.0)
         bx, by, _ = planar_to_middle(frames, finger, 0.0, 1.0, 0.0)
         px, py = xs[on] * k, ys[on] * k
-        pads.append(PadPressure(contact.mu_c, ax * px + bx * py, ay * px + by * py, w))
+        cx, cy = cop_x * k, cop_y * k
+        pads.append(PadPressure(finger, contact.mu_c, contact.r,
+                                (ax * cx + bx * cy, ay * cx + by * cy),
+                                ax * px + bx * py, ay * px + by * py, w, table, frames))
     return pads[0], pads[1]
 
 
@@ -105,19 +124,20 @@ def joint_torsional_radius(pads: Sequence[PadPressure], centre: Sequence[float])
 
 def friction_wrench(pads: Sequence[PadPressure], cor: Sequence[float], omega: float
                     ) -> tuple[float, float, float]:
-    """Coulomb friction on the object per newton of grasp ``(Fx, Fy, τ)`` [N/N, m] (torque
-    about the gripper centre) while it turns relative to the pads about ``cor`` [m], in the
-    sense of ``omega`` (sign only)."""
-    cx, cy = cor
+    """Friction on the object per newton of grasp ``(Fx, Fy, τ)`` [N/N, m] (torque about the
+    gripper centre) while it turns relative to the pads about ``cor`` [m], in the sense of
+    ``omega`` (sign only): each pad's limit surface at its centre of pressure."""
     fx = fy = tz = 0.0
     for p in pads:
-        rx, ry = p.x - cx, p.y - cy
-        d = np.maximum(np.hypot(rx, ry), 1e-12)
-        gx = p.mu_c * p.weight * (omega * ry / d)       # −μ p̂ v̂, v = ω ẑ × (ρ − c)
-        gy = p.mu_c * p.weight * (-omega * rx / d)
-        fx += float(np.sum(gx))
-        fy += float(np.sum(gy))
-        tz += float(np.sum(p.x * gy - p.y * gx))
+        vx = -omega * (p.cop[1] - cor[1])                 # ω ẑ × (cop − c), gripper_middle
+        vy = omega * (p.cop[0] - cor[0])
+        px, py, pw = planar_from_middle(p.frames, p.finger, vx, vy, omega)
+        hx, hy, ht = p.table.lookup(px, py, pw, p.radius)  # against the motion
+        gx, gy, gt = planar_to_middle(p.frames, p.finger, p.mu_c * hx, p.mu_c * hy,
+                                      p.mu_c * ht * p.radius)
+        fx += gx
+        fy += gy
+        tz += gt + p.cop[0] * gy - p.cop[1] * gx
     return fx, fy, tz
 
 
@@ -171,7 +191,9 @@ def hinge_translation(obj: ObjectPreset, start_turn: float, turn: float, theta: 
 
     Returns:
         Distance from the gripper centre of the object point that was there at the start;
-        inf when the weight has no lever to turn the pads with.
+        inf when the weight has no lever to turn the pads with. Where the CoR search does not
+        converge (a CoR far outside the pads: levers of a few millimetres) the ellipsoidal
+        point is used for that step.
     """
     pads = pad_pressures(obj, frames)
     cx, cy = rotation_centre(pads)
