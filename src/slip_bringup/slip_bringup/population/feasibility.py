@@ -32,7 +32,7 @@ limit surface, docs/control_and_estimation.md).
   hanging angle ``γ`` passed); a hinge keeps the object where it is, ``γ₀ = turn`` from
   hanging, while the gripper turns around it: the weight and its torque are all that turns
   the pads, so the object turns relative to them about the centre of rotation at which the
-  Coulomb friction of both pressure maps balances that load (`grasp_geometry`: a gradient
+  friction of both pads (their limit surfaces) balances that load (`grasp_geometry`: a gradient
   map, or two maps whose centres of pressure sit apart, move it off the grasp point; for one
   centred map it lies about ``r̄²/(d·sin γ₀)`` beside it). The grasp-point translation this
   gives over the turn (`grasp_geometry.hinge_translation`) must stay within
