@@ -39,8 +39,8 @@ the pad centre, fingers of very different friction). The integral ``∫e dt`` is
 ``±integral_limit``.
 
 Measured by the population evaluation (estimated properties, truth as the judge; figures in
-docs/model_slip_control.md §5a): seed 2026, all 133 feasible objects within 60 ± 6° and 10 mm;
-seed 777, 135 of 141. The previous force-ratio law's swing towards hanging put the grasp point
+docs/model_slip_control.md §5a): seed 2026, all 132 feasible objects within 60 ± 6° and 10 mm;
+seed 777, 134 of 140. The previous force-ratio law's swing towards hanging put the grasp point
 through 10–30 mm on short levers.
 
 Refusals (`ModelHingeController.for_request`, before anything changes): no valid ``r``; no
