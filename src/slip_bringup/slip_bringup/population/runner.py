@@ -63,7 +63,8 @@ from slip_bringup.core.evaluation.poses import hanging_angle
 from slip_bringup.core.evaluation.settings import EvalSettings, EvaluationError
 from slip_bringup.core.evaluation.trajectories import (TrajectoryOutcome, linear_slip,
                                                        rotational_slip)
-from slip_bringup.population.feasibility import Feasibility, assess, hold_force_needed_held
+from slip_bringup.population.feasibility import (Feasibility, assess, hold_force_needed,
+                                                hold_force_needed_held)
 from slip_bringup.population.results import SCENARIOS, ObjectResult, ScenarioResult
 from slip_bringup.population.statistics import Z_95
 from slip_control.core import params as controller_params
@@ -236,7 +237,7 @@ def _hold(name: str, obj: PopulationObject, pushes: tuple[Push, ...], settings: 
     heavy object on a long lever does not swing in the pads before HOLD takes over — catching
     a swinging object is not the load the protocol measures.
     """
-    still = hold_force_needed_held(obj.preset, (), 0.0)
+    still = hold_force_needed(obj.preset, ())
     setup = min(HOLD_SETUP_MAX_FORCE, max(settings.reset_grasp_force, HOLD_SETUP_MARGIN * still))
     out = hold_under_disturbance(name, pushes,
                                  dataclasses.replace(settings, reset_grasp_force=setup),
