@@ -14,7 +14,7 @@ from slip_bringup.core.evaluation.holding import (TAP_MAX_DURATION, HoldOutcome,
                                                   sustained)
 from slip_bringup.core.evaluation.poses import (hanging_angle, hinge_start_turn,
                                                 lever_horizontal_turn, path_sin_max)
-from slip_bringup.core.evaluation.scene import gravity_in_middle
+from slip_bringup.core.evaluation.poses import gravity_in_middle
 from slip_bringup.core.evaluation.trajectories import TrajectoryOutcome
 from slip_bringup.population.report import format_table, summarise
 from slip_bringup.population.results import ObjectResult, ScenarioResult

@@ -51,7 +51,7 @@ from dataclasses import dataclass
 
 from friction_models.core.presets import ObjectPreset
 
-from slip_bringup.core.evaluation.poses import hinge_start_turn, path_sin_max
+from slip_bringup.core.evaluation.poses import hinge_start_turn, path_sin_max, rotated
 from slip_bringup.population.grasp_geometry import hinge_translation
 
 
@@ -98,9 +98,7 @@ def hold_force_needed(obj: ObjectPreset, loads: Sequence[Load], g: float = 9.81,
     """
     mu = obj.finger_1.mu_c + obj.finger_2.mu_c
     r = 0.5 * (obj.finger_1.r + obj.finger_2.r)
-    c, s = math.cos(rotation), math.sin(rotation)
-    x0, y0 = obj.com_offset
-    cx, cy = c * x0 - s * y0, s * x0 + c * y0
+    cx, cy = rotated(obj.com_offset, rotation)
     weight = obj.mass * g
     need = 0.0
     for fx, fy, torque in [(0.0, 0.0, 0.0), *loads]:

@@ -36,6 +36,7 @@ from numpy.typing import NDArray
 from friction_models.core.limit_surface import LimitSurface, LimitSurfaceCache
 from friction_models.core.presets import ObjectPreset
 from friction_models.core.surfaces import standard_surface
+from slip_bringup.core.evaluation.poses import gravity_in_middle, rotated
 from slip_cell_common.core.frames import FrameParams, planar_from_middle, planar_to_middle
 
 
@@ -198,17 +199,18 @@ def hinge_translation(obj: ObjectPreset, start_turn: float, turn: float, theta: 
     pads = pad_pressures(obj, frames)
     cx, cy = rotation_centre(pads)
     r_j = joint_torsional_radius(pads, (cx, cy))
-    c, s = math.cos(theta), math.sin(theta)
-    ox, oy = obj.com_offset
-    com = np.array([c * ox - s * oy, s * ox + c * oy])       # CoM in gripper_middle
+    com = np.array(rotated(obj.com_offset, theta))           # CoM in gripper_middle
     point = np.zeros(2)                                       # the tracked object point
     centre = np.array([cx, cy])
     weight = obj.mass * gravity
     step = turn / steps
+    # The gripper turns by +step, the object stays: it turns by −step in the pads.
+    cs, sn = math.cos(-step), math.sin(-step)
+    rot = np.array([[cs, -sn], [sn, cs]])
     arm = start_turn
     for _ in range(steps):
         ca, sa = math.cos(arm), math.sin(arm)
-        down = np.array([-sa, -ca])                           # gravity in gripper_middle
+        down = np.array(gravity_in_middle(arm))
         rel = com - centre
         horizontal = ca * rel[0] - sa * rel[1]                # CoM's world x from the centre
         torque = float(com[0] * down[1] - com[1] * down[0]) * weight
@@ -218,9 +220,6 @@ def hinge_translation(obj: ObjectPreset, start_turn: float, turn: float, theta: 
         found = slip_centre(pads, (-weight * down[0], -weight * down[1], -torque), r_j,
                             guess)
         cor = np.array(found) if found is not None else guess
-        # The gripper turns by +step, the object stays: it turns by −step in the pads.
-        cs, sn = math.cos(-step), math.sin(-step)
-        rot = np.array([[cs, -sn], [sn, cs]])
         point = cor + rot @ (point - cor)
         com = cor + rot @ (com - cor)
         arm += step

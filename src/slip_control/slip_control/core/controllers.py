@@ -409,7 +409,7 @@ class HoldController(SlipController):
         sample = self._next_sample(inputs, st)
         if isinstance(sample, ControlOutput):
             return sample
-        self._last_stamp = sample.stamp
+        self._advance_stamp(sample.stamp)
         f_d = self.hold_force(sample.wrench, sample.twist)
         out = self._out
         if out is None or f_d >= out:
@@ -449,7 +449,7 @@ class HingeController(SlipController):
         sample = self._next_sample(inputs, st)
         if isinstance(sample, ControlOutput):
             return sample
-        self._last_stamp = sample.stamp
+        self._advance_stamp(sample.stamp)
         w, v = sample.wrench, sample.twist
         h = self._p.hinge
         self._out = max(h.floor, h.threshold * w.tangential_force / self._c.mu_c

@@ -21,6 +21,17 @@ import math
 from collections.abc import Sequence
 
 
+def rotated(point: Sequence[float], angle: float) -> tuple[float, float]:
+    """``point`` (x, y) turned by ``angle`` [rad] about the origin (+z)."""
+    c, s = math.cos(angle), math.sin(angle)
+    return c * point[0] - s * point[1], s * point[0] + c * point[1]
+
+
+def gravity_in_middle(arm_angle: float) -> tuple[float, float]:
+    """Unit gravity direction in ``gripper_middle`` xy for a gripper turned ``arm_angle``."""
+    return -math.sin(arm_angle), -math.cos(arm_angle)
+
+
 def wrap(angle: float) -> float:
     """``angle`` [rad] wrapped to ``(−π, π]``."""
     a = math.remainder(angle, 2.0 * math.pi)

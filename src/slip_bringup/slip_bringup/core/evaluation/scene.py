@@ -2,7 +2,6 @@
 """Cells for the scenarios: a homed, biased simulated cell with its agents (SI units)."""
 from __future__ import annotations
 
-import math
 from dataclasses import replace
 
 from friction_models.core.harness import Harness
@@ -91,8 +90,3 @@ def controlled_scene(preset: str, settings: EvalSettings,
         ctl.require_mode(h, ModeRequest(int(SlipMode.HOLD)))
         h.run_for(settings.settle)
     return h, ctl, probe
-
-
-def gravity_in_middle(arm_angle: float) -> tuple[float, float]:
-    """Unit gravity direction in ``gripper_middle`` xy for a gripper turned ``arm_angle``."""
-    return -math.sin(arm_angle), -math.cos(arm_angle)

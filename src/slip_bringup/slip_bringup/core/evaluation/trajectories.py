@@ -14,8 +14,9 @@ from dataclasses import dataclass
 from friction_models.core.harness import Harness, default_motion_time
 
 from slip_bringup.core.evaluation.agents import ControllerAgent
-from slip_bringup.core.evaluation.poses import lever_horizontal_turn, turn_to_hanging_angle
-from slip_bringup.core.evaluation.scene import controlled_scene, gravity_in_middle
+from slip_bringup.core.evaluation.poses import (gravity_in_middle, lever_horizontal_turn,
+                                                turn_to_hanging_angle)
+from slip_bringup.core.evaluation.scene import controlled_scene
 from slip_bringup.core.evaluation.settings import EvalSettings
 from slip_bringup.core.evaluation.truth import (TruthProbe, centre_point_displacement,
                                                 interp_progress)

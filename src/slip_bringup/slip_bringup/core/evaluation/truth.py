@@ -8,6 +8,8 @@ from collections.abc import Callable
 from friction_models.core.harness import Harness
 from friction_models.core.sensors import TelemetrySample
 
+from slip_bringup.core.evaluation.poses import rotated
+
 _NAN = math.nan
 
 
@@ -23,8 +25,8 @@ def centre_point_displacement(x0: float, y0: float, theta0: float, x: float, y: 
     tracked point was at ``(x0, y0)`` with relative rotation ``theta0`` [rad] is now at
     ``(x, y) − R(θ − θ0)·(x0, y0)``.
     """
-    c, s = math.cos(theta - theta0), math.sin(theta - theta0)
-    return x - (c * x0 - s * y0), y - (s * x0 + c * y0)
+    ox, oy = rotated((x0, y0), theta - theta0)
+    return x - ox, y - oy
 
 
 class TruthProbe:
