@@ -67,6 +67,11 @@ def telemetry(results: list[LineResult]) -> list[LineResult]:
     return [r for r in results if r.status is not None]
 
 
+#: The conservative stale policy: a telemetry gap writes the safe voltage once.
+SAFE_ON_STALE = dataclasses.replace(
+    BridgeParams(), link=dataclasses.replace(BridgeParams().link, stale_action='safe_voltage'))
+
+
 def test_invalid_commands_are_rejected_counted_and_never_written() -> None:
     rig = Rig()
     rig.run(0.1)
@@ -151,8 +156,33 @@ def test_stale_ft_bypasses_then_fault_limits_to_safe_force() -> None:
     assert results[-1].command == b'T-1.28\n'  # open loop 5 N = −1.2766 V
 
 
-def test_short_stale_gap_writes_safe_voltage_then_resumes_armed() -> None:
+def test_short_stale_gap_holds_the_last_command_and_the_grasp_by_default() -> None:
     rig = Rig()
+    rig.run(0.05)
+    rig.bridge.set_grasp_force(10.0, rig.t)
+    rig.run(1.0)
+    held = rig.writes[-1]
+    assert command_voltage(held) < -2.0
+    t_last = rig.t
+    rig.emu.silence(0.1)  # longer than link.stale_after (20 ms), shorter than the fault
+    n = len(rig.writes)
+    result = rig.bridge.check_watchdog(t_last + 0.025)
+    assert result.state == LinkState.STALE and result.held and not result.reconnect
+    assert rig.writes[n:] == [] and rig.emu.target_voltage_v == command_voltage(held)
+    status = rig.bridge.status(t_last + 0.025)
+    assert status.armed and not status.safe_state and not status.link_ok
+    assert rig.bridge.check_watchdog(t_last + 0.08).held and rig.writes[n:] == []
+    forces = []
+    for _ in range(200):  # the gap, then telemetry resumes: the loop is clocked by it
+        rig.run(0.005)
+        forces.append(rig.emu.grasp_force)
+    assert max(abs(f - 10.0) for f in forces) < 1.0
+    assert rig.bridge.diagnostics(rig.t).stale_events == 1
+    assert not rig.bridge.status(rig.t).safe_state and rig.bridge.status(rig.t).link_ok
+
+
+def test_short_stale_gap_writes_safe_voltage_then_resumes_armed_when_so_configured() -> None:
+    rig = Rig(SAFE_ON_STALE)
     rig.run(0.05)
     rig.bridge.set_grasp_force(10.0, rig.t)
     rig.run(1.0)
@@ -180,11 +210,12 @@ def test_link_fault_disarms_writes_safe_voltage_and_needs_explicit_rearm() -> No
     rig.emu.silence(0.5)
     n = len(rig.writes)
     result = rig.bridge.check_watchdog(t_last + 0.025)
-    assert result.state == LinkState.STALE and not result.reconnect
-    assert rig.writes[n:] == [b'T0.00\n'] and rig.emu.target_voltage_v == 0.0
+    assert result.state == LinkState.STALE and not result.reconnect and result.held
+    assert rig.writes[n:] == []  # stale: the firmware keeps the last command
     status = rig.bridge.status(t_last + 0.025)
-    assert status.armed and status.safe_state and not status.link_ok
+    assert status.armed and not status.safe_state and not status.link_ok
     fault = rig.bridge.check_watchdog(t_last + 0.3)
+    assert rig.writes[n:] == [b'T0.00\n'] and rig.emu.target_voltage_v == 0.0
     assert not rig.bridge.status(t_last + 0.3).armed
     assert fault.state == LinkState.FAULT and fault.reconnect
     assert not rig.bridge.check_watchdog(t_last + 0.31).reconnect  # once per fault
@@ -421,8 +452,36 @@ def test_a_host_stall_with_telemetry_waiting_writes_nothing_and_resumes_without_
         b'\nT0.00\n', b'T0.00\n'}
 
 
-def test_a_silent_device_goes_stale_then_resumes_rate_limited_from_the_applied_value() -> None:
+def test_a_silent_device_holds_then_resumes_without_a_command_burst() -> None:
     rig = Rig()
+    rig.run(0.05)
+    rig.bridge.set_grasp_force(10.0, rig.t)
+    rig.run(1.5)
+    held = command_voltage(rig.writes[-1])
+    held_force = -held * NPV
+    t_last = rig.t
+    rig.emu.silence(0.15)  # the device itself stops: nothing waits at the port
+    n = len(rig.writes)
+    result = rig.bridge.check_watchdog(t_last + 0.025, input_pending=lambda: 0)
+    assert result.state == LinkState.STALE and result.held and not result.disarmed
+    # Meanwhile the target rises: on resumption the command may not jump to it.
+    assert rig.bridge.set_grasp_force(30.0, t_last + 0.03).accepted
+    assert rig.bridge.check_watchdog(t_last + 0.1, input_pending=lambda: 0).held
+    assert rig.writes[n:] == []
+    results = telemetry(rig.run(0.4))
+    motors = [r.motor for r in results if r.motor is not None]
+    assert motors[0].stamp - t_last > 0.15
+    rate = rig.bridge.params.link.resume_rate
+    t0 = motors[0].stamp
+    for m in motors:  # from the held value, at most resume_rate N/s
+        assert abs(m.force_cmd - held_force) <= rate * (m.stamp - t0) + 0.01
+    assert rig.bridge.diagnostics(rig.t).resume_ramps == 1
+    rig.run(1.5)
+    assert rig.emu.grasp_force == pytest.approx(30.0, abs=0.5)
+
+
+def test_a_silent_device_goes_stale_then_resumes_rate_limited_from_the_applied_value() -> None:
+    rig = Rig(SAFE_ON_STALE)
     rig.run(0.05)
     rig.bridge.set_grasp_force(10.0, rig.t)
     rig.run(1.5)

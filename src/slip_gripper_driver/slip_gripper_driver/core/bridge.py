@@ -23,9 +23,12 @@ Fail-safe rules (issue 5 item 2, hardware_protocols §7):
   to ``safe_hold_force`` (see `force_control`).
 * Link supervision (`check_watchdog`, called from a timer with the current time) judges the
   **device**, not the host: telemetry counts as missing only while no bytes wait at the port
-  (``input_pending``). No telemetry for ``link.stale_after`` → the safe voltage is written
-  once; the driver stays armed and the loop resumes with the next line. No telemetry for
-  ``link.fault_after`` → link fault: **disarmed**, the caller reconnects. Telemetry that waits
+  (``input_pending``). No telemetry for ``link.stale_after`` → the link is stale: status
+  ``link_ok`` false, and by ``link.stale_action`` either nothing is written (``hold_last``,
+  default: the firmware keeps the last command, so a telemetry gap does not drop the grasp)
+  or the safe voltage once (``safe_voltage``); the driver stays armed and the loop resumes
+  with the next line. No telemetry for ``link.fault_after`` → link fault: safe voltage,
+  **disarmed**, the caller reconnects. Telemetry that waits
   unprocessed (the host was descheduled, the firmware kept sending) is a host stall: nothing
   is written, the firmware keeps the last command, and the first line processed afterwards
   reports ``'host_stall'`` with how late it was; only a stall longer than
@@ -133,7 +136,7 @@ class GripperBridge:
         self._activate_t = _NAN
         self._last_line_t = _NAN
         self._session_lines = 0
-        self._stale_latched = False
+        self._stale_latched = self._stale_safe_written = False
         self._fault_reported = False
         self._stall_fault_reported = False
         self._pending_homing = False
@@ -202,7 +205,7 @@ class GripperBridge:
             self._parser.reset()
             self._observer.reset()
             self._controller.reset()
-            self._stale_latched = False
+            self._stale_latched = self._stale_safe_written = False
             self._fault_reported = False
             self._gate.clear(t)
             self._pending_homing = self._params.homing.on_activate and not self._homing.homed
@@ -282,7 +285,7 @@ class GripperBridge:
             self._connect_t = t
             self._last_line_t = _NAN
             self._session_lines = 0
-            self._stale_latched = False
+            self._stale_latched = self._stale_safe_written = False
             self._fault_reported = False
             self._new_session('link (re)connected')
             self._voltage_cmd = self._params.actuator.safe_voltage
@@ -341,7 +344,8 @@ class GripperBridge:
                 return WatchdogResult(LinkState.FAULT, age, reconnect, reason, reconnect)
             reason = f'no telemetry for {age:.3f} s (stale after {p.stale_after:.3f} s)'
             self._go_stale(reason, disarm=False)
-            return WatchdogResult(LinkState.STALE, age, False, reason)
+            return WatchdogResult(LinkState.STALE, age, False, reason,
+                                  held=not self._safe())
 
     def _host_lagging(self, age: float, pending: int) -> WatchdogResult:
         """Telemetry waits at the port: the host is behind, not the device (lock held)."""
@@ -508,7 +512,7 @@ class GripperBridge:
         a = params.actuator
         self._session_lines += 1
         self._last_line_t = t
-        self._stale_latched = False
+        self._stale_latched = self._stale_safe_written = False
         self._fault_reported = False
         self._stall_fault_reported = False
         self._expect_banner = False
@@ -761,26 +765,34 @@ class GripperBridge:
         self._pending_stall_s = 0.0
 
     def _go_stale(self, reason: str, disarm: bool) -> None:
-        """Write the safe voltage once when telemetry stops.
+        """React once when telemetry stops (lock held).
 
-        A stale link (no line for ``link.stale_after``) only gets the safe voltage: the loop is
-        clocked by telemetry, so it resumes with the next line. A fault (``link.fault_after``,
-        reconnection follows) also disarms: after a reconnect nothing is applied until
-        ``arm()``.
+        A stale link (no line for ``link.stale_after``) is counted once per gap; with
+        ``link.stale_action`` ``hold_last`` nothing is written (the firmware keeps the last
+        command, as through a host stall), with ``safe_voltage`` the safe voltage is written.
+        Homing, which moves open loop, always gets the safe voltage. The loop is clocked by
+        telemetry, so it resumes with the next line, rate-limited from the applied value. A
+        fault (``link.fault_after``, reconnection follows) writes the safe voltage and disarms:
+        after a reconnect nothing is applied until ``arm()``.
         """
-        if disarm and (self._armed or self._homing.active):
+        homing = self._homing.active
+        if disarm and (self._armed or homing):
             self._enter_safe(reason)
-        elif self._homing.active:
+        elif homing:
             self._homing.abort(reason)
-        if self._stale_latched:
+        if not self._stale_latched:
+            self._stale_latched = True
+            self._stale_events += 1
+        hold = not disarm and not homing and \
+            self._params.link.stale_action == 'hold_last'
+        if hold or self._stale_safe_written:
             return
-        self._stale_latched = True
-        self._stale_events += 1
+        self._stale_safe_written = True
         self._voltage_cmd = self._params.actuator.safe_voltage
         self._write(self._safe_command)
 
     def _safe(self) -> bool:
-        return not (self._active and self._armed) or self._stopped or self._stale_latched
+        return not (self._active and self._armed) or self._stopped or self._stale_safe_written
 
     def _line_age(self, t: float) -> float:
         ref = self._last_line_t

@@ -23,13 +23,23 @@ class LinkParams:
 
     Staleness is judged from the device: a telemetry gap counts only while no bytes wait at
     the port. Telemetry that waits unprocessed means the host is behind, not the device: the
-    last command stays applied (the firmware holds it) until ``host_stall_limit``.
+    last command stays applied (the firmware holds it) until ``host_stall_limit``. A gap
+    shorter than ``fault_after`` is a validity state (status ``link_ok`` false, diagnostics
+    WARN); ``stale_action`` says whether it also writes the safe voltage. The safe state
+    proper (safe voltage, disarm, reconnect) belongs to the link fault.
     """
 
     stale_after: float = field(default=0.020, metadata={
         'unit': 's', 'range': (0.004, 1.0),
-        'description': 'no telemetry arrived for this long: safe voltage written once (stays '
-                       'armed; the loop resumes with the next line)'})
+        'description': 'no telemetry arrived for this long: the link is stale (status link_ok '
+                       'false; see stale_action; stays armed, the loop resumes with the next '
+                       'line)'})
+    stale_action: str = field(default='hold_last', metadata={
+        'choices': ('hold_last', 'safe_voltage'),
+        'description': 'what a stale link does before fault_after: hold_last = write nothing, '
+                       'the firmware keeps the last command (the grasp holds through a '
+                       'telemetry gap); safe_voltage = write the safe voltage once (the grasp '
+                       'relaxes until telemetry resumes)'})
     fault_after: float = field(default=0.250, metadata={
         'unit': 's', 'range': (0.01, 10.0),
         'description': 'no telemetry arrived for this long: link fault, disarm, reconnect'})

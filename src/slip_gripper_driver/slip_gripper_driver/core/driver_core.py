@@ -9,7 +9,8 @@ through `GripperBridge.on_lines` (a backlog is stamped one firmware period apart
 newest line steps and writes), which writes the command before ``on_result`` sees the line.
 
 Every event carries a message that states what the driver did (`EVENT_TEXT`): a stale link
-writes the safe voltage and stays armed, only a link fault (or a host stall beyond
+holds the last command or writes the safe voltage (``link.stale_action``) and stays armed,
+only a link fault (or a host stall beyond
 ``link.host_stall_limit``) disarms, and a host stall with telemetry waiting changes nothing
 on the device.
 """
@@ -134,8 +135,7 @@ class GripperDriverCore:
         """
         result = self.bridge.check_watchdog(t, self._unprocessed)
         if result.state != self._last_state and result.state == LinkState.STALE:
-            self._emit(t, 'stale', f'{self.port}: {result.reason}; safe voltage written, '
-                       'still armed (the loop resumes with the next telemetry line)')
+            self._emit(t, 'stale', f'{self.port}: {result.reason}; {self._stale_text(t, result)}')
         if result.state == LinkState.FAULT and result.reconnect:
             self._emit(t, 'fault', f'{self.port}: {result.reason}; link fault: safe voltage '
                        'written, disarmed (gripper/arm required), reconnecting')
@@ -146,6 +146,17 @@ class GripperDriverCore:
         if result.reconnect:
             self.link.request_reconnect(result.reason)
         return result
+
+    def _stale_text(self, t: float, result: WatchdogResult) -> str:
+        """What a stale link did (``link.stale_action`` and the bridge's state)."""
+        resume = 'the loop resumes with the next telemetry line'
+        if result.held:
+            fault = self.bridge.params.link.fault_after
+            return (f'last command held by the firmware, still armed ({resume}; link fault '
+                    f'after {fault:.3f} s)')
+        if self.bridge.status(t).armed:
+            return f'safe voltage written, still armed ({resume})'
+        return 'safe voltage applied (not armed)'
 
     def start_watchdog(self, period_s: float, on_tick: WatchdogCallback | None = None) -> None:
         """Call `watchdog` every ``period_s`` [s] on a thread of its own until deactivation.

@@ -22,7 +22,7 @@ class LinkState(IntEnum):
 
     INACTIVE = 0  #: not activated (no supervision)
     OK = 1
-    STALE = 2  #: no telemetry arrived for stale_after: safe voltage (still armed)
+    STALE = 2  #: no telemetry arrived for stale_after (still armed; see link.stale_action)
     FAULT = 3  #: no telemetry arrived for fault_after: disarmed, reconnect
     DOWN = 4  #: port closed (reconnecting)
     LAGGING = 5  #: telemetry arrives but waits unprocessed (the host is behind, not the link)
@@ -38,6 +38,8 @@ class WatchdogResult(NamedTuple):
         reason: Human-readable reason naming the condition.
         disarmed: True once when this check disarmed the driver (link fault, or a host stall
             beyond ``link.host_stall_limit``).
+        held: Stale, and nothing was written: the firmware keeps applying the last command
+            (``link.stale_action`` ``hold_last`` while armed and not homing).
     """
 
     state: LinkState
@@ -45,6 +47,7 @@ class WatchdogResult(NamedTuple):
     reconnect: bool
     reason: str
     disarmed: bool = False
+    held: bool = False
 
 
 class CommandResult(NamedTuple):
