@@ -665,9 +665,14 @@ class GripperDriverNode(LifecycleNode):
             ('safe_reason', d.safe_reason), ('last_error', s.last_error),
             ('scheduling', '; '.join(f'{k}: {v}' for k, v in
                                      sorted(self._tuning.results.items())) or 'not started'))
-        if d.link_state in (LinkState.DOWN, LinkState.FAULT, LinkState.STALE):
+        if d.link_state in (LinkState.DOWN, LinkState.FAULT):
             return Report(Level.ERROR, f'{core.port}: link {d.link_state.name.lower()}'
                           + (f' ({s.last_error})' if s.last_error else ''), values)
+        if d.link_state == LinkState.STALE:  # a gap shorter than link.fault_after
+            action = ('safe voltage applied' if core.bridge.status(now).safe_state else
+                      'the firmware keeps the last command')
+            return Report(Level.WARN, f'{core.port}: link stale: no telemetry for '
+                          f'{d.line_age_s:.3f} s ({action})', values)
         if d.link_state == LinkState.INACTIVE:
             return Report(Level.OK, f'{core.port}: connected, inactive', values)
         if d.link_state == LinkState.LAGGING:

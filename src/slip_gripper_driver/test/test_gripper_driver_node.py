@@ -447,6 +447,43 @@ def test_unplugged_port_safe_state_reconnect_and_not_armed_until_arm(cell: Cell,
     assert cell.firmware.wait_for(lambda: cell.firmware.emulator.target_voltage_v > 1.0, 3.0)
 
 
+def test_a_telemetry_gap_keeps_the_command_and_diagnostics_say_so(cell: Cell,
+                                                                  rig_factory) -> None:
+    """A device that stops printing for less than link.fault_after: stale, still armed, the
+    last command kept (link.stale_action hold_last), a WARN naming it; then it resumes."""
+    from diagnostic_msgs.msg import DiagnosticArray
+    from slip_msgs.msg import GripperStatus
+    rig = rig_factory(cell.overrides(**{'link.stale_after': 0.2, 'link.fault_after': 4.0}))
+    statuses = rig.subscribe(GripperStatus, 'gripper/status')
+    diags = rig.subscribe(DiagnosticArray, '/diagnostics')
+    rig.start()
+    assert rig.spin_until(lambda: len(statuses) > 50)
+    rig.command(-4.0)
+    assert cell.firmware.wait_for(lambda: cell.firmware.emulator.target_voltage_v > 1.0, 3.0)
+    held = cell.last_command()
+    n = len(cell.commands())
+    cell.firmware.silence(2.5)
+
+    def stale_warning() -> bool:
+        for array in diags[-3:]:
+            link, _ = diag_values(array, 'gripper_driver: link')
+            if 'link stale' in link.message:
+                return True
+        return False
+    assert rig.spin_until(stale_warning, 5.0)
+    link = next(diag_values(a, 'gripper_driver: link')[0] for a in reversed(diags)
+                if 'link stale' in diag_values(a, 'gripper_driver: link')[0].message)
+    assert link.level == b'\x01' and 'the firmware keeps the last command' in link.message
+    during = rig.status()
+    assert not during.link_ok and during.armed and not during.safe_state
+    assert cell.commands()[n:] == [] and cell.last_command() == held
+    assert cell.firmware.emulator.target_voltage_v > 1.0
+    assert rig.spin_until(lambda: statuses[-1].link_ok and statuses[-1].armed, 5.0)
+    after = rig.node.core.bridge.diagnostics(rig.node.now())
+    assert after.stale_events >= 1 and after.link_faults == 0 and after.armed
+    assert b'T0.00' not in cell.commands()[n:]
+
+
 def test_nan_and_out_of_range_commands_are_rejected_counted_and_never_written(
         cell: Cell, rig_factory) -> None:
     from diagnostic_msgs.msg import DiagnosticArray
