@@ -219,3 +219,64 @@ def test_sim_on_sim_time_sets_its_own_clock_without_subscribing_to_it(
         code = sim.stop()
     assert code == 0, sim.output()
     assert 'Traceback' not in sim.output()
+
+
+def test_sim_waits_for_a_starved_streaming_controller(ros_context, ros_env,
+                                                      tmp_path: Path) -> None:
+    """A commander that streams grasp-force commands (timeout > 0) and then stalls: simulated
+    time stops at most ``max_input_lag`` past its newest command, resumes with the next one,
+    and runs on without it after ``max_input_wait`` of wall time."""
+    import time
+
+    import yaml
+    from slip_cell_common.qos import COMMAND
+    from slip_msgs.msg import GraspForceCommand
+    config = yaml.safe_load(Path(_share('friction_models', 'config/sim_gripper.yaml')).read_text())
+    params = config['sim_gripper']['ros__parameters']
+    lag, wait = params['max_input_lag'], params['max_input_wait']
+    assert 0.0 < lag <= 0.05, 'the lead is a few control steps, not the command expiry'
+    sim = start_sim(tmp_path, ros_env)
+    probe = Probe(ros_context)
+    clock = probe.node.get_clock()
+    try:
+        assert probe.spin_until(lambda: len(probe.msgs['sim/state']) > 20, 30.0), sim.output()
+        pub = probe.node.create_publisher(GraspForceCommand, 'gripper/grasp_force_cmd', COMMAND)
+        assert probe.spin_until(lambda: pub.get_subscription_count() > 0, 10.0)
+
+        def command() -> float:
+            stamp = clock.now()
+            cmd = GraspForceCommand(force=2.0, timeout=0.1,
+                                    source=GraspForceCommand.SOURCE_TEST)
+            cmd.header.stamp = stamp.to_msg()
+            pub.publish(cmd)
+            return stamp.nanoseconds * 1e-9
+
+        def spin_for(wall_s: float) -> float:
+            """Spin ``wall_s`` of wall time; the probe's clock (the simulation's /clock)."""
+            end = time.monotonic() + wall_s
+            while time.monotonic() < end:
+                probe.executor.spin_once(timeout_sec=0.005)
+            return clock_seconds(clock)
+
+        last = 0.0
+        end = time.monotonic() + 1.0
+        while time.monotonic() < end:  # a controller streaming at ~100 Hz of simulated time
+            probe.executor.spin_once(timeout_sec=0.002)
+            if clock_seconds(clock) - last >= 0.01:
+                last = command()
+        # The commander stalls (shorter than max_input_wait): the simulation waits for it.
+        early = spin_for(0.1)
+        stalled = spin_for(0.2)
+        assert stalled - last <= lag + 0.01, (last, early, stalled, lag)
+        assert stalled - early < 0.005, 'simulated time stood still while the commander stalled'
+        resumed_from = command()
+        assert spin_for(0.1) > resumed_from, 'a new command lets the simulation go on'
+        # A commander silent beyond max_input_wait is given up on: the simulation runs on.
+        before = clock_seconds(clock)
+        assert spin_for(wait + 0.5) - before > 0.3
+        assert 'runs on without waiting' in sim.output()
+    finally:
+        probe.close()
+        code = sim.stop()
+    assert code == 0, sim.output()
+    assert 'Traceback' not in sim.output()

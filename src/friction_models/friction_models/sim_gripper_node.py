@@ -103,7 +103,7 @@ class SimNodeParams:
         'description': 'most simulated time advanced in one tick; a host too slow for real '
                        'time slows the simulation (real-time factor < target), nothing is '
                        'skipped'})
-    max_input_lag: float = field(default=0.1, metadata={
+    max_input_lag: float = field(default=0.03, metadata={
         'unit': 's', 'range': (0.0, 10.0),
         'description': '(addition) most simulated time run ahead of the newest streaming '
                        'grasp-force command (timeout > 0: the slip controller); the simulation '
