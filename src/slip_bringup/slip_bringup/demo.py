@@ -181,7 +181,7 @@ class RunMonitor:
 
 def judge_run(record: RunRecord, metrics: dict[str, Any], mode: str, distance: float,
               angle: float, tolerances: Tolerances, runner_success: bool, runner_message: str,
-              rtf_target: float) -> DemoVerdict:
+              rtf_target: float, duration: float = 0.0) -> DemoVerdict:
     """Trajectories from the controller's state changes, the simulator's truth over each one
     and its settling, the analysis of each tracked segment, the diagnostics: the verdict."""
     t = sorted(record.sim)
@@ -202,9 +202,9 @@ def judge_run(record: RunRecord, metrics: dict[str, Any], mode: str, distance: f
         trajectories.append(Trajectory(traj.mode, traj.t_start, traj.t_end, traj.outcome,
                                        controller, sensors, truth))
     rtf = realtime_factor((record.sim[k][3] for k in t), rtf_target)
-    return build_verdict(demo_targets(mode, distance, angle), trajectories, tolerances,
-                         runner_success, runner_message, worst_diagnostics(record.diagnostics),
-                         rtf)
+    return build_verdict(demo_targets(mode, distance, angle, duration), trajectories,
+                         tolerances, runner_success, runner_message,
+                         worst_diagnostics(record.diagnostics), rtf)
 
 
 def _overrides(pairs: list[str]) -> dict[str, dict[str, Any]]:
@@ -352,7 +352,7 @@ def main(argv: list[str] | None = None) -> int:
             record.add_bag(bag)
             verdict = judge_run(record, metrics, ns.mode, ns.distance, math.radians(ns.angle),
                                 tolerances, bool(result.success), str(result.message),
-                                float(ns.realtime_factor))
+                                float(ns.realtime_factor), float(ns.duration))
         except BagError as exc:
             _say(f'FAILED: cannot judge the run from its bag: {exc}')
             code = code or 1

@@ -51,10 +51,11 @@ def _done(mode: str, truth: float, t0: float = 1.0) -> Trajectory:
 
 
 def test_demo_targets_are_the_demos_own() -> None:
-    assert demo_targets('demo') == (Target('linear', 0.02),
-                                    Target('rotational', pytest.approx(math.radians(20.0))))
-    assert demo_targets('demo', 0.04, -1.0) == (Target('linear', 0.04), Target('rotational', 1.0))
-    assert demo_targets('linear_slippage', 0.03) == (Target('linear', 0.03),)
+    assert demo_targets('demo') == (Target('linear', 0.02, 2.0),
+                                    Target('rotational', pytest.approx(math.radians(20.0)), 2.0))
+    assert demo_targets('demo', 0.04, -1.0, 3.0) == (Target('linear', 0.04, 3.0),
+                                                     Target('rotational', 1.0, 3.0))
+    assert demo_targets('linear_slippage', 0.03, duration=2.5) == (Target('linear', 0.03, 2.5),)
     assert demo_targets('rotational_slippage', angle=-0.5) == (Target('rotational', 0.5),)
     assert demo_targets('grasp') == ()
 
@@ -109,6 +110,24 @@ def test_a_done_slip_whose_truth_misses_the_target_fails() -> None:
     strict = build_verdict(targets, good, Tolerances(linear=1e-4, angle=1e-4), True,
                            'demo done', DIAG_OK, RTF)
     assert not strict.ok and len(strict.failures) == 2
+
+
+def test_a_slip_done_far_sooner_than_requested_ran_away_and_fails() -> None:
+    """A controller starved on a loaded host: 20 deg "done" in 0.2 s of 2 s (the object spun
+    in the pads; truth 22.1 deg, within the angle tolerance). Not a controlled slip."""
+    targets = demo_targets('demo')
+    spun = Trajectory('rotational', 35.56, 35.76, 'done', math.radians(21.7),
+                      math.radians(21.4), math.radians(22.1))
+    row = judge_segments(targets[1:], [spun], TOL)[0]
+    assert not row.passed
+    assert row.reason == ('done after 0.20 s of the requested 2.00 s (at least 1.00 s): '
+                          'the object ran away from the trajectory')
+    # A trajectory that ends a little early (the controller's tolerance) still passes.
+    early = Trajectory('rotational', 35.0, 36.8, 'done', 0.35, 0.35, math.radians(20.1))
+    assert judge_segments(targets[1:], [early], TOL)[0].passed
+    # Without a requested duration the rule does not apply.
+    unknown = judge_segments((Target('rotational', spun.truth),), [spun], TOL)[0]
+    assert unknown.passed
 
 
 def test_missing_segments_and_a_failed_runner_fail_the_run() -> None:

@@ -9,7 +9,9 @@ every ``/diagnostics`` status and the runner's result. `build_verdict` decides:
 * one row per **expected** slip segment (`demo_targets`: the demo's own targets, not ones
   guessed from the recorded reference), matched in order to the trajectories of its mode; a
   segment that never ran or left no tracking still gets its row;
-* a row passes only when the controller said "done" **and** the simulator's truth is within
+* a row passes only when the controller said "done", the trajectory lasted at least
+  ``min_duration_fraction`` of the requested duration (a 20° "rotation" done in 0.2 s of 2 s
+  was the object spinning away, not a controlled slip) **and** the simulator's truth is within
   the stated tolerance of the target (`Tolerances`); otherwise it is FAILED with the reason
   ("velocity stale", "not run", "true object 2.1 mm, 17.9 mm short of 20.0 mm", …);
 * the run fails when any row fails or the runner reported failure;
@@ -27,7 +29,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
-from slip_control.core.runner_sequences import DEMO_ANGLE, DEMO_DISTANCE, SETTLE_AFTER_SLIP
+from slip_control.core.runner_sequences import (DEMO_ANGLE, DEMO_DISTANCE, DEMO_DURATION,
+                                                SETTLE_AFTER_SLIP)
 
 #: ``diagnostic_msgs/DiagnosticStatus`` levels.
 OK, WARN, ERROR, STALE = 0, 1, 2, 3
@@ -46,6 +49,9 @@ class Tolerances:
 
     linear: float = 0.005               #: [m]
     angle: float = math.radians(5.0)    #: [rad]
+    #: A trajectory that ends "done" sooner than this fraction of its requested duration ran
+    #: away from its reference (the controller does not reach the target early by design).
+    min_duration_fraction: float = 0.5
 
     def of(self, mode: str) -> float:
         """The tolerance of a ``'linear'`` or ``'rotational'`` segment [m | rad]."""
@@ -54,10 +60,12 @@ class Tolerances:
 
 @dataclass(frozen=True)
 class Target:
-    """One slip segment the run was asked for: ``value`` [m | rad] (magnitude)."""
+    """One slip segment the run was asked for: ``value`` [m | rad] (magnitude) in
+    ``duration`` [s] (0: not known, not judged)."""
 
     mode: str
     value: float
+    duration: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -136,19 +144,21 @@ class DemoVerdict:
         return not self.failures
 
 
-def demo_targets(mode: str, distance: float = 0.0, angle: float = 0.0) -> tuple[Target, ...]:
+def demo_targets(mode: str, distance: float = 0.0, angle: float = 0.0,
+                 duration: float = 0.0) -> tuple[Target, ...]:
     """The slip segments runner mode ``mode`` performs, with the targets it uses.
 
     ``demo``: linear then rotational, the goal's values or the demo defaults when 0;
     ``linear_slippage``/``rotational_slippage``: the goal's value; other modes: none.
     """
     if mode == 'demo':
-        return (Target('linear', distance if distance > 0.0 else DEMO_DISTANCE),
-                Target('rotational', abs(angle) if abs(angle) > 0.0 else DEMO_ANGLE))
+        d = duration if duration > 0.0 else DEMO_DURATION
+        return (Target('linear', distance if distance > 0.0 else DEMO_DISTANCE, d),
+                Target('rotational', abs(angle) if abs(angle) > 0.0 else DEMO_ANGLE, d))
     if mode == 'linear_slippage':
-        return (Target('linear', distance),)
+        return (Target('linear', distance, duration),)
     if mode == 'rotational_slippage':
-        return (Target('rotational', abs(angle)),)
+        return (Target('rotational', abs(angle), duration),)
     return ()
 
 
@@ -220,6 +230,12 @@ def judge_segment(target: Target, traj: Trajectory | None, tol: Tolerances) -> S
         return SegmentRow(target, traj, False, 'did not end (no outcome recorded)')
     if traj.outcome != 'done':
         return SegmentRow(target, traj, False, traj.outcome or 'ended without an outcome')
+    lasted = traj.t_end - traj.t_start
+    shortest = tol.min_duration_fraction * target.duration
+    if target.duration > 0.0 and lasted < shortest:
+        return SegmentRow(target, traj, False, (
+            f'done after {lasted:.2f} s of the requested {target.duration:.2f} s (at least '
+            f'{shortest:.2f} s): the object ran away from the trajectory'))
     if traj.truth is None:
         return SegmentRow(target, traj, False,
                           'simulator truth not recorded over the whole segment')
@@ -290,8 +306,9 @@ def build_verdict(targets: Sequence[Target], trajectories: Sequence[Trajectory],
 
 def format_verdict(verdict: DemoVerdict, tol: Tolerances) -> list[str]:
     """The slip, diagnostics, real-time and result lines of the summary table."""
-    lines = [f'Slip: target vs achieved (pass: controller "done" and true object within '
-             f'{_fmt("linear", tol.linear)} / {_fmt("rotational", tol.angle)}):']
+    lines = [f'Slip: target vs achieved (pass: controller "done" after at least '
+             f'{tol.min_duration_fraction:.0%} of the requested duration and true object '
+             f'within {_fmt("linear", tol.linear)} / {_fmt("rotational", tol.angle)}):']
 
     def cell(mode: str, value: float | None) -> str:
         return f'{_fmt(mode, abs(value)):>9}' if value is not None and math.isfinite(value) \
