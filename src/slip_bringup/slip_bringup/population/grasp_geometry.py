@@ -74,18 +74,17 @@ def pad_pressures(obj: ObjectPreset, frames: FrameParams = FrameParams(), grid_n
     limit-surface table; ``cache`` shares tables between calls)."""
     base = standard_surface(obj.surface, grid_n, patch_size)
     table = (cache if cache is not None else LimitSurfaceCache()).get(base, n_ls)
-    xs, ys = base.cell_centres()
     p = np.asarray(base.pressure, dtype=np.float64)
     on = p > 0.0
     w = p[on] / float(np.sum(p[on]))
-    cop_x, cop_y = base.cop
     pads = []
     for finger, contact in ((1, obj.finger_1), (2, obj.finger_2)):
-        k = contact.r / table.r_a
+        surface = base.scaled(contact.r / table.r_a)   # as `pad_contact.PadContact` scales it
+        xs, ys = surface.cell_centres()
         ax, ay, _ = planar_to_middle(frames, finger, 1.0, 0.0, 0.0)
         bx, by, _ = planar_to_middle(frames, finger, 0.0, 1.0, 0.0)
-        px, py = xs[on] * k, ys[on] * k
-        cx, cy = cop_x * k, cop_y * k
+        px, py = xs[on], ys[on]
+        cx, cy = surface.cop
         pads.append(PadPressure(finger, contact.mu_c, contact.r,
                                 (ax * cx + bx * cy, ay * cx + by * cy),
                                 ax * px + bx * py, ay * px + by * py, w, table, frames))
