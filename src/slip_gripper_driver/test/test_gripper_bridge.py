@@ -521,6 +521,38 @@ def test_a_host_stall_beyond_the_limit_disarms() -> None:
     assert not rig.bridge.check_watchdog(t_last + limit + 0.02, lambda: 4000).disarmed  # once
 
 
+def test_a_device_that_resumes_after_a_long_gap_is_not_taken_for_a_stalled_host() -> None:
+    """The watchdog found the port empty during a gap: bytes it sees waiting when the device
+    resumes arrived after that, so the host is not stalled (no disarm, no host-stall event
+    with the length of the gap). Seen with fault_after above host_stall_limit."""
+    link = dataclasses.replace(BridgeParams().link, fault_after=4.0, host_stall_limit=1.0)
+    rig = Rig(dataclasses.replace(BridgeParams(), link=link))
+    rig.run(0.05)
+    rig.bridge.set_grasp_force(10.0, rig.t)
+    rig.run(1.0)
+    t_last = rig.t
+    n = len(rig.writes)
+    rig.emu.silence(1.5)
+    states = set()
+    while rig.t < t_last + 1.49:  # the device is silent; the watchdog checks every 5 ms
+        rig.run(0.005)
+        states.add(rig.bridge.check_watchdog(rig.t, lambda: 0).state)
+    assert states == {LinkState.OK, LinkState.STALE}
+    # Its first line waits at the port when the watchdog looks, before the reader takes it.
+    resumed = rig.bridge.check_watchdog(rig.t + 0.004, input_pending=lambda: 12)
+    assert resumed.state == LinkState.LAGGING and not resumed.disarmed
+    assert resumed.age_s < 0.01, resumed
+    assert rig.writes[n:] == [] and rig.bridge.status(rig.t).armed
+    results = rig.run(0.1)
+    assert 'host_stall' not in [r.event for r in results]
+    assert rig.bridge.diagnostics(rig.t).host_stalls == 0
+    # A host that really stalled (the watchdog never saw the port empty) is still one.
+    rig.run(0.5)
+    t_last = rig.t
+    stalled = rig.bridge.check_watchdog(t_last + 1.2, input_pending=lambda: 6000)
+    assert stalled.state == LinkState.LAGGING and stalled.disarmed
+
+
 # ---------------------------------------------------------------------------- firmware
 def test_a_real_firmware_reset_is_counted_as_a_restart_after_the_link_reconnected() -> None:
     """Issue 17 item 5: ~5.7 s of silence (the link faults and reconnects first), then only

@@ -144,6 +144,9 @@ class GripperBridge:
         # host stalls and resumption
         self._lagging = False
         self._pending_stall_s = 0.0
+        #: Newest watchdog time [s] at which the port was empty during a telemetry gap (NaN
+        #: when none since the last line): bytes seen waiting later arrived after it.
+        self._port_empty_t = _NAN
         self._last_write_line_t = _NAN
         self._ramp_t = _NAN
         self._ramp_from = 0.0
@@ -332,7 +335,12 @@ class GripperBridge:
                 return WatchdogResult(LinkState.OK, age, False, 'ok')
             pending = input_pending() if input_pending is not None else 0
             if pending > 0 and self._session_lines > 0:
-                return self._host_lagging(age, pending)
+                # Waiting since the port was last seen empty, at most since the last line: a
+                # device that resumes after a gap is not a host that stalled all along.
+                empty = self._port_empty_t
+                waited = age if empty != empty else min(age, t - empty)
+                return self._host_lagging(waited, pending)
+            self._port_empty_t = t
             self._lagging = False
             if age > p.fault_after:
                 reason = f'no telemetry for {age:.3f} s (fault after {p.fault_after:.3f} s)'
@@ -350,7 +358,8 @@ class GripperBridge:
     def _host_lagging(self, age: float, pending: int) -> WatchdogResult:
         """Telemetry waits at the port: the host is behind, not the device (lock held)."""
         self._lagging = True
-        self._pending_stall_s = max(self._pending_stall_s, age)
+        if age > self._params.link.stale_after:
+            self._pending_stall_s = max(self._pending_stall_s, age)
         limit = self._params.link.host_stall_limit
         if age <= limit:
             return WatchdogResult(LinkState.LAGGING, age, False,
@@ -512,6 +521,7 @@ class GripperBridge:
         a = params.actuator
         self._session_lines += 1
         self._last_line_t = t
+        self._port_empty_t = _NAN
         self._stale_latched = self._stale_safe_written = False
         self._fault_reported = False
         self._stall_fault_reported = False
