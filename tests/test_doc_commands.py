@@ -18,6 +18,9 @@ Every command line is one of three kinds:
 * **skipped**, listed in `SKIPPED` below with the reason (hardware-only, destructive, needs a
   full ROS install, placeholders).
 
+Blocks run in parallel, except those of a document marked ``<!-- doc-test: in-order -->``,
+which run one after another in document order (later blocks use what earlier ones wrote).
+
 A ``bash`` block is the only kind of code block that may hold commands: an unlabelled block
 whose lines start like commands fails `test_unlabelled_blocks_hold_no_commands`, so a recipe
 cannot escape these tests by losing its language tag.
@@ -357,12 +360,27 @@ BLOCKS = [b for f in doc_files() for b in parse_blocks(f)]
 SHELL_BLOCKS = [b for b in BLOCKS if b.lang in SHELL_LANGS and b.commands]
 RUNNABLE = [b for b in SHELL_BLOCKS
             if any(how != 'skipped' for _, how in block_script(b)[1])]
+#: A document holding this comment has its blocks run one after another, in document order
+#: (a later block uses files an earlier one wrote, as a reader running them would).
+IN_ORDER_MARK = '<!-- doc-test: in-order -->'
+IN_ORDER_DOCS = {str(p.relative_to(ROOT)) for p in doc_files() if IN_ORDER_MARK in p.read_text()}
 
 
 def _cost(block: Block) -> int:
     """Rough order of cost, so the long blocks start first."""
     text = '\n'.join(c.text for c in block.commands)
     return -(100 * text.count('run_graph') + 50 * text.count('emulator') + len(block.commands))
+
+
+def _run_chain(blocks: list[Block], homes: list[Path],
+               futures: list[Future[BlockResult]]) -> None:
+    """Run ``blocks`` one after another (each in its own home), setting each one's future."""
+    for block, home, future in zip(blocks, homes, futures):
+        try:
+            script, planned = block_script(block)
+            future.set_result(run_script(script, planned, home))
+        except BaseException as exc:  # handed to the waiting test
+            future.set_exception(exc)
 
 
 class _Runs:
@@ -379,11 +397,30 @@ class _Runs:
             if self._pool is not None:
                 return
             self._pool = ThreadPoolExecutor(max_workers=WORKERS)
-            for i, block in enumerate(sorted(blocks, key=_cost)):
-                home = Path(self._tmp.name) / f'home_{i}'
-                home.mkdir()
-                script, planned = block_script(block)
-                self._futures[block.id] = self._pool.submit(run_script, script, planned, home)
+            # One job per block, except the blocks of an in-order document: one job runs
+            # those one after another, in the order a reader runs them.
+            jobs: list[list[Block]] = []
+            chains: dict[str, list[Block]] = {}
+            for block in sorted(blocks, key=lambda b: b.line):
+                if block.doc in IN_ORDER_DOCS:
+                    if block.doc not in chains:
+                        chains[block.doc] = []
+                        jobs.append(chains[block.doc])
+                    chains[block.doc].append(block)
+                else:
+                    jobs.append([block])
+            jobs.sort(key=lambda job: sum(_cost(b) for b in job))
+            n = 0
+            for job in jobs:
+                futures: list[Future[BlockResult]] = []
+                homes = []
+                for block in job:
+                    homes.append(Path(self._tmp.name) / f'home_{n}')
+                    homes[-1].mkdir()
+                    n += 1
+                    futures.append(Future())
+                    self._futures[block.id] = futures[-1]
+                self._pool.submit(_run_chain, job, homes, futures)
 
     def result(self, block: Block) -> BlockResult:
         return self._futures[block.id].result()
@@ -494,6 +531,23 @@ def test_parser_joins_continuations_attaches_heredocs_and_reads_markers() -> Non
         "make -n demo 'DEMO_ARGS=--preset wood'"
     with pytest.raises(ValueError, match='unknown marker'):
         parse_commands(('slip_cli force 5  # doc-test: skip',), 1)
+
+
+def test_blocks_of_an_in_order_document_run_one_after_another(tmp_path: Path) -> None:
+    """The second block reads what the first wrote (it starts only when the first ended)."""
+    shared = tmp_path / 'shared.txt'
+    first = Block('docs/probe.md', 1, 'bash', (), parse_commands((
+        'sleep 1', f'echo written > {shared}'), 2))
+    second = Block('docs/probe.md', 10, 'bash', (), parse_commands((f'cat {shared}',), 11))
+    homes = [tmp_path / 'home_0', tmp_path / 'home_1']
+    for home in homes:
+        home.mkdir()
+    futures: list[Future[BlockResult]] = [Future(), Future()]
+    _run_chain([first, second], homes, futures)
+    assert futures[0].result().returncode == 0, futures[0].result().output
+    assert futures[1].result().returncode == 0, futures[1].result().output
+    assert 'written' in futures[1].result().output
+    assert 'docs/adding_an_object.md' in IN_ORDER_DOCS
 
 
 def test_a_failing_command_fails_its_block(tmp_path: Path) -> None:
