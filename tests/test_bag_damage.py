@@ -197,3 +197,26 @@ def test_intact_bag_passes_every_tool_but_replay(tmp_path: Path,
     assert TOOLS['analyze'](bag, tmp_path) == 2
     assert '/gripper/motor_command' in capsys.readouterr().err
     shutil.rmtree(tmp_path / 'csv')
+
+
+@pytest.mark.ros
+@pytest.mark.parametrize('damage', ['missing_path', 'folder_without_metadata',
+                                    'bit_flipped_chunk', 'inflated_metadata_counts',
+                                    'zero_message_bag'])
+def test_bag_replay_node_refuses_a_damaged_bag_before_publishing(damage: str,
+                                                                 tmp_path: Path) -> None:
+    """The installed ``bag_replay`` console script (not only ``slip_bag replay``) reads the
+    whole bag before it publishes: one error line, non-zero exit, no traceback."""
+    import subprocess
+
+    from slip_cell_common.testing import workspace_root
+    make, expected = DAMAGE[damage]
+    bag = make(tmp_path)
+    exe = workspace_root() / 'install' / 'slip_bringup' / 'lib' / 'slip_bringup' / 'bag_replay'
+    done = subprocess.run([str(exe), '--ros-args', '-p', f'bag:={bag}', '-p',
+                           'start_delay:=0.0'], capture_output=True, text=True, timeout=60)
+    lines = [line for line in done.stderr.splitlines() if line.strip()]
+    assert done.returncode != 0, f'bag_replay accepted a {damage}: {done.stdout}'
+    assert 'Traceback' not in done.stderr
+    assert len(lines) == 1 and expected in lines[0], done.stderr
+    assert 'replay finished' not in done.stdout + done.stderr

@@ -21,7 +21,7 @@ from typing import Any
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 
-from slip_cell_common.bag_io import BagError, bag_info, iter_raw
+from slip_cell_common.bag_io import BagError, iter_raw, validate_bag
 from slip_cell_common.recorder import (TopicRecorder, import_message_type, is_command_topic,
                                       topic_matches)
 from slip_cell_common.node_main import run_node
@@ -94,9 +94,11 @@ class BagReplayNode(Node):
         self.cfg = ParameterBinding(self, ReplayParams).load()
         if not Path(self.cfg.bag).exists():
             raise BagError(f'bag {self.cfg.bag} does not exist')
+        # The whole bag is read once before anything is published: a damaged bag, counts that
+        # disagree with metadata.yaml or a bag without messages fail here, not mid-replay.
         # Create every publisher before the start delay so discovery happens during the delay.
         self._pubs: dict[str, Any] = {}
-        for info in bag_info(self.cfg.bag).topics:
+        for info in validate_bag(self.cfg.bag).topics:
             if info.name != names.CLOCK and self._selected(info.name):
                 self._publisher(info.name, info.msgtype, info.latched)
         self._clock_pub = (self.create_publisher(Clock, names.CLOCK, CLOCK)
