@@ -55,6 +55,7 @@ from slip_msgs.msg import OpticalChipArray, PlanarSlip
 from slip_msgs.srv import SetChipMode
 from std_srvs.srv import Trigger
 
+from slip_cell_common.log_sink import log_event
 from slip_cell_common.diagnostics import DiagnosticsPublisher
 from slip_cell_common.time_conv import clock_seconds, nanoseconds_to_seconds
 from slip_cell_common.core import names
@@ -306,13 +307,7 @@ class VelocitySensorNode(LifecycleNode):
             f'{cfg.calibration.speed_term}); frame {self._frame_id}')
 
     def _on_driver_event(self, level: str, message: str) -> None:
-        logger = self.get_logger()
-        if level == 'error':
-            logger.error(message)
-        elif level == 'warn':
-            logger.warning(message)
-        else:
-            logger.info(message)
+        log_event(self.get_logger(), level, message)
 
     def _on_params_changed(self, cfg: VelocitySensorParams) -> None:
         driver = self._driver
