@@ -40,6 +40,7 @@ from slip_gripper_driver.core.ft_validity import (UNCHECKED, RangeLimits, Record
 from slip_gripper_driver.core.netft_client import FtSample, NetFTClient, NetFTError, NetFTStats
 from slip_gripper_driver.core.netft_config import fetch_netft_config
 from slip_gripper_driver.core.netft_params import FtStartParams, FtStreamParams
+from slip_gripper_driver.ft_opener import EventSink, FtOpener
 
 #: ``sink(finger, stamp [s], bias-removed wrench or None)`` — None while unbiased.
 Sink = Callable[[int, float, 'Sequence[float] | None'], None]
@@ -132,6 +133,11 @@ class FtChannel:
         self._last_flaw = RecordFlaw.NONE
         self._bias_lost = False
         self._device_restarts = 0
+        self._latest_biased: tuple[float, float] | None = None  # (stamp [s], Fz [N])
+        self._opener: FtOpener | None = None
+        #: Device bias sent: records of the old stream (still untared, perhaps queued in the
+        #: socket on a busy host) are not averaged; the window opens with the new stream.
+        self._await_new_stream = False
 
     @property
     def name(self) -> str:
@@ -167,9 +173,19 @@ class FtChannel:
             self.client = None
             raise
 
+    def keep_opening(self, first_error: str, on_event: EventSink | None = None) -> None:
+        """`open` failed with ``first_error``: retry it on a thread with the restart back-off
+        until it succeeds or `close` (see `ft_opener`)."""
+        if self._opener is None:
+            self._opener = FtOpener(self, first_error, self._restart[0], self._restart[1],
+                                    on_event)
+
     def close(self) -> None:
-        """Stop streaming (0x0000), end the reader thread and close the socket."""
+        """Stop open attempts and streaming (0x0000), end the reader thread, close the socket."""
         self.publishing = False
+        opener, self._opener = self._opener, None
+        if opener is not None:
+            opener.stop()
         if self.client is not None:
             self.client.close()
             self.client = None
@@ -179,7 +195,20 @@ class FtChannel:
         if self.client is not None:
             self.client.supervise(now, receive_timeout_s)
         if self.accumulator.poll(now) != BiasState.COLLECTING:
+            self._end_device_wait()
             self._bias_done.set()
+
+    def finish_bias_window(self) -> None:
+        """End the current window now with what it collected (samples stopped)."""
+        self._end_device_wait()
+        self.accumulator.poll(math.inf)
+
+    def _end_device_wait(self) -> None:
+        """A window that ended while still waiting for the tared stream says so."""
+        if self._await_new_stream:
+            self._await_new_stream = False
+            self.accumulator.fail('device bias failed: the box started no new stream after '
+                                  'the bias command (0x0042)')
 
     def apply(self, stream: FtStreamParams, bias: BiasParams) -> None:
         """Adopt run-time changes (decimation, raw and error publishing, rates, bias)."""
@@ -199,7 +228,10 @@ class FtChannel:
         """Begin a bias window at ``t`` [s] (device mode first sends command 0x0042).
 
         In device mode the box subtracts its own bias; the host window that follows averages
-        the residual (≈ 0) so the result is still checked against ``min_samples``.
+        the residual (≈ 0) so the result is still checked against ``min_samples``. That window
+        opens with the first record of the stream the box starts after the bias command:
+        records still arriving from the old stream carry the old tare (on a loaded host many
+        can wait in the socket) and would shift the offsets.
         """
         b = self.bias_params
         acc = self.accumulator
@@ -208,14 +240,26 @@ class FtChannel:
             fresh = b.accumulator(BIAS_TIMEOUT_S)
             fresh.offsets, fresh.message = acc.offsets, acc.message  # keep the valid bias
             self.accumulator = acc = fresh
-        if b.mode == 'device' and self.client is not None:
-            self.client.set_device_bias()
+        device = b.mode == 'device' and self.client is not None
+        self._await_new_stream = device
         acc.start(t)
         self._bias_done.clear()  # after start(): a sample in between cannot end the wait
+        if device:
+            assert self.client is not None
+            self.client.set_device_bias()  # and the start request: a new stream follows
 
     def wait_bias(self, timeout_s: float) -> bool:
         """Block until the current window closed or ``timeout_s`` [s] passed."""
         return self._bias_done.wait(timeout_s)
+
+    def normal_force(self, now: float, max_age_s: float) -> float | None:
+        """Bias-removed Fz [N] of the newest valid sample no older than ``max_age_s`` [s] at
+        ``now``, or None (not biased, bias lost, or no fresh sample)."""
+        latest = self._latest_biased
+        if latest is None or not self.accumulator.biased or self._bias_lost or \
+                now - latest[0] > max_age_s:
+            return None
+        return latest[1]
 
     @property
     def biased(self) -> bool:
@@ -254,11 +298,19 @@ class FtChannel:
                 self.publish_raw(sample.stamp, sample.wrench)
             return
         acc = self.accumulator
-        biased = acc.add(sample.stamp, sample.wrench)
+        if self._await_new_stream and sample.new_stream:
+            self._await_new_stream = False
+            acc.start(sample.stamp)  # the tared stream: the window opens here
+        if self._await_new_stream:
+            biased = acc.apply(sample.wrench)
+        else:
+            biased = acc.add(sample.stamp, sample.wrench)
         if acc.state != BiasState.COLLECTING and not self._bias_done.is_set():
             self._bias_done.set()
         if self._bias_lost and acc.biased:
             self._bias_lost = False  # a new bias succeeded after the restart
+        if biased is not None and not self._bias_lost:
+            self._latest_biased = (sample.stamp, biased[2])
         if self._sink is not None and not self._bias_lost:
             self._sink(self.finger, sample.stamp, biased)
         if not publish:
@@ -288,6 +340,14 @@ class FtChannel:
         """Diagnostic report: rate vs expected, records, status word, bias, sample age."""
         s = self.stats(now)
         if s is None:
+            opener = self._opener
+            if opener is not None:
+                o = opener.status()
+                return Report(Level.ERROR, (
+                    f'{self.name}: not open after {o.attempts} attempts ({o.last_error}); '
+                    f'next attempt in {o.retry_in_s:.1f} s; the loop runs without this F/T'),
+                    (('address', self.name), ('open_attempts', str(o.attempts)),
+                     ('last_error', o.last_error)))
             return Report(Level.STALE, f'{self.name}: not open')
         return ft_report(s, now, self._stream.expected_rate, self._stream.rate_tolerance,
                          stale_after_s, self.accumulator, self.health())
@@ -364,7 +424,7 @@ def run_bias(channels: Sequence[FtChannel], now: Clock,
     for channel in channels:
         if not channel.wait_bias(max(0.0, deadline - time.monotonic())):
             # The window never closed (samples stopped): end it now with what it collected.
-            channel.accumulator.poll(math.inf)
+            channel.finish_bias_window()
     return bias_outcome([(c.name, c.accumulator) for c in channels])
 
 

@@ -7,10 +7,12 @@ line's results are published from that same thread (rclpy publishing is thread-s
 Net F/T boxes (``ft.mode: embedded``) feed the loop from their own reader threads; with
 ``ft.mode: topic`` the loop consumes ``finger_k/ft/wrench`` from standalone ``netft_driver``s.
 
-Lifecycle: configure opens the port and starts both RDT streams (FAILURE naming the box); a
-port that cannot be opened yet (missing, busy) is logged and configure succeeds without it:
-activate then keeps opening it with back-off (``reconnect.*``) until it works or the node is
-deactivated. Activate arms and starts the reader and the link watchdog (a thread of the core
+Lifecycle: configure opens the port and starts both RDT streams. A port that cannot be opened
+yet (missing, busy) is logged and configure succeeds without it: activate then keeps opening it
+with back-off (``reconnect.*``) until it works or the node is deactivated. A Net F/T box that
+does not answer yet (booting, unplugged) is logged too and opened with back-off on a thread of
+its own (`ft_opener`) until it streams or the node is cleaned up; meanwhile the loop runs as
+with stale F/T. Activate arms and starts the reader and the link watchdog (a thread of the core
 checking every 5 ms, independent of the executor); deactivate, cleanup and shutdown write the
 safe voltage **first**, and cleanup/shutdown undo the GC freeze of configure (see
 `core.realtime`). Link faults, reconnections and firmware restarts disarm: no force is
@@ -44,6 +46,7 @@ from slip_msgs.msg import GraspForceCommand, GripperStatus, MotorCommand, Transf
 from std_srvs.srv import Trigger
 
 from slip_gripper_driver import gripper_msgs_conv
+from slip_cell_common.log_sink import log_event
 from slip_cell_common.diagnostics import DiagnosticsPublisher
 from slip_cell_common.time_conv import clock_seconds
 from slip_cell_common.node_main import run_node
@@ -224,7 +227,16 @@ class GripperDriverNode(LifecycleNode):
                 try:
                     channel.open()
                 except NetFTError as exc:
-                    return self._fail(f'finger {finger} Net F/T: {exc}')
+                    # Booting, unplugged or unreachable: configured without it; the channel
+                    # keeps opening it with back-off (the loop falls back as for stale F/T).
+                    problem = f'finger {finger} Net F/T: {exc}'
+                    self.last_error = '; '.join(filter(None, (self.last_error, problem)))
+                    self.get_logger().error(
+                        f'{problem}; configured without it: opened with back-off '
+                        f'({cfg.reconnect.initial_delay:g} s doubling up to '
+                        f'{cfg.reconnect.max_delay:g} s) until it works or the node is cleaned '
+                        'up; until then the loop runs without this finger\'s F/T')
+                    channel.keep_opening(str(exc), self._log_event)
                 self.channels.append(channel)
         self._create_endpoints(cfg)
         if cfg.realtime.freeze_gc:
@@ -320,6 +332,10 @@ class GripperDriverNode(LifecycleNode):
             # DDS down again (frozen, they outlived it: heap corruption at exit, issue 16).
             unfreeze_gc()
             self._gc_frozen = False
+
+    def _log_event(self, level: str, message: str) -> None:
+        """``(level, message)`` sink of helper threads (``'info'``, ``'warn'``, ``'error'``)."""
+        log_event(self.get_logger(), level, message)
 
     # ------------------------------------------------------------------ endpoints
     def _create_endpoints(self, cfg: GripperDriverParams) -> None:
@@ -577,7 +593,7 @@ class GripperDriverNode(LifecycleNode):
         else:
             ok, message = self._bias_remote()
         response.success, response.message = ok, message
-        (self.get_logger().info if ok else self.get_logger().error)(f'bias: {message}')
+        log_event(self.get_logger(), 'info' if ok else 'error', f'bias: {message}')
         return response
 
     def _bias_remote(self) -> tuple[bool, str]:

@@ -5,6 +5,10 @@ Publishes ``finger_<k>/ft/wrench`` (bias removed; nothing before the first bias)
 ``publish_raw``, ``finger_<k>/ft/raw``, both stamped at datagram arrival in frame
 ``ft_sensor_<k>``; serves ``finger_<k>/ft/bias``; reports diagnostics task ``ft``.
 
+``finger_<k>/ft/bias`` is refused, with the reason, while the pads may be loaded: this box
+measures normal force, or the newest ``gripper/status`` reports a squeezing target, command or
+contact (`standalone_bias_guard`; ``gripper/bias_ft`` of the gripper driver checks more).
+
 ``finger_<k>/ft/wrench`` carries measurements only: records with an error in the status word,
 beyond the measuring range, or taken after a box restart lost the bias are never published on
 it (``publish_on_error`` puts the first two on ``ft/raw`` only). A ``gripper_driver`` in
@@ -26,17 +30,22 @@ from rclpy.clock import Clock, ClockType
 from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
 from std_srvs.srv import Trigger
 
+from slip_msgs.msg import GripperStatus
+
 from slip_cell_common.diagnostics import DiagnosticsPublisher
+from slip_cell_common.log_sink import log_event
 from slip_cell_common.time_conv import clock_seconds
 from slip_cell_common.core import names
 from slip_cell_common.node_main import run_node
 from slip_cell_common.param_binding import ParameterBinding
-from slip_cell_common.qos import SENSOR_PUB, overridable
+from slip_cell_common.qos import SENSOR_PUB, SENSOR_SUB, overridable
 from slip_cell_common.core.monitors import Level, Report
 from slip_gripper_driver.core.netft_client import NetFTError
 from slip_cell_common.core.param_schema import ParameterError
 from slip_gripper_driver.ft_channel import (BIAS_LOST, FT_SUPERVISE_PERIOD_S, FtChannel,
                                             run_bias, wrench_publisher)
+from slip_gripper_driver.core.standalone_bias_guard import (GripperLoadView,
+                                                             standalone_bias_verdict)
 from slip_gripper_driver.node_params import NetFTDriverParams
 
 SUCCESS = TransitionCallbackReturn.SUCCESS
@@ -63,6 +72,7 @@ class NetFTDriverNode(LifecycleNode):
         self._bias_group = MutuallyExclusiveCallbackGroup()
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
         self._bias_lost_logged = False
+        self._gripper_load: GripperLoadView | None = None
 
     def now(self) -> float:
         """Node clock [s]: the stamp of every sample."""
@@ -105,6 +115,10 @@ class NetFTDriverNode(LifecycleNode):
             (wrench, self.destroy_publisher), (raw, self.destroy_publisher),
             (self.create_service(Trigger, names.ft_bias_srv(k), self._srv_bias,
                                  callback_group=self._bias_group), self.destroy_service),
+            # The gripper driver's status: the bias service refuses while the pads squeeze.
+            (self.create_subscription(GripperStatus, names.GRIPPER_STATUS,
+                                      self._on_gripper_status, SENSOR_SUB),
+             self.destroy_subscription),
             (self.create_timer(FT_SUPERVISE_PERIOD_S, self._on_supervise, clock=self._steady),
              self.destroy_timer)]
         self._diag = DiagnosticsPublisher(self, channel.address)
@@ -181,10 +195,26 @@ class NetFTDriverNode(LifecycleNode):
         if channel is None:
             response.success, response.message = False, 'netft_driver is not configured'
             return response
-        ok, message = run_bias([channel], self.now, self._cfg.receive_timeout)
+        cfg = self._cfg
+        now = self.now()
+        verdict = standalone_bias_verdict(
+            now, cfg.bias_guard, cfg.finger,
+            channel.normal_force(now, cfg.receive_timeout), self._gripper_load)
+        if verdict.refusal is not None:
+            response.success, response.message = False, f'bias refused: {verdict.refusal}'
+            self.get_logger().error(response.message)
+            return response
+        ok, message = run_bias([channel], self.now, cfg.receive_timeout)
+        if verdict.note:
+            message = f'{message} ({verdict.note})'
         response.success, response.message = ok, message
-        (self.get_logger().info if ok else self.get_logger().error)(f'bias: {message}')
+        log_event(self.get_logger(), 'info' if ok else 'error', f'bias: {message}')
         return response
+
+    def _on_gripper_status(self, msg: GripperStatus) -> None:
+        self._gripper_load = GripperLoadView(
+            received=self.now(), force_target=msg.force_target, force_cmd=msg.force_cmd,
+            armed=msg.armed, safe_state=msg.safe_state, in_contact=msg.in_contact)
 
     def _diag_ft(self, now: float) -> Report:
         if self.channel is None:

@@ -20,6 +20,7 @@ from slip_cell_common.core.param_schema import ParameterError, flattened_group
 from slip_cell_common.core import names
 from slip_gripper_driver.core.protocol import ActuatorParams
 from slip_gripper_driver.core.realtime import RealtimeParams
+from slip_gripper_driver.core.standalone_bias_guard import StandaloneBiasGuardParams
 from slip_cell_common.core.serial_transport import ReconnectParams, SerialParams
 from slip_cell_common.core.validation import validate_fields
 
@@ -118,6 +119,7 @@ class NetFTDriverParams:
         'description': 'no record for this long: the stream is re-requested (back-off)'})
     reconnect: NetFTReconnectParams = field(default_factory=NetFTReconnectParams)
     bias: BiasParams = field(default_factory=BiasParams)
+    bias_guard: StandaloneBiasGuardParams = field(default_factory=StandaloneBiasGuardParams)
 
     def resolved_frame_id(self) -> str:
         """``frame_id``, or ``ft_sensor_<finger>`` when empty."""
@@ -129,5 +131,5 @@ class NetFTDriverParams:
         if self.reconnect.initial_delay > self.reconnect.max_delay:
             extra.append(f'reconnect.initial_delay {self.reconnect.initial_delay} s exceeds '
                          f'reconnect.max_delay {self.reconnect.max_delay} s')
-        extra += _collect({'bias': self.bias})
+        extra += _collect({'bias': self.bias, 'bias_guard': self.bias_guard})
         validate_fields(self, extra)

@@ -407,6 +407,53 @@ def test_a_port_that_does_not_exist_is_retried_with_back_off_until_it_appears(
         node.destroy_node()
 
 
+def test_net_ft_boxes_not_answering_at_configure_are_opened_with_back_off_until_they_do(
+        tmp_path: Path, rig_factory) -> None:
+    """Issue 16 item 6: an embedded Net F/T box that does not answer at configure (booting,
+    unplugged) no longer fails the driver: configured without it, diagnostics ERROR naming the
+    box, attempts with back-off, and the stream starts once the box answers."""
+    from diagnostic_msgs.msg import DiagnosticArray
+    firmware = PtyFirmwareEmulator(FirmwareEmulator(GripperModelParams(
+        object_width=0.03, initial_opening=0.031)), link_path=str(tmp_path / 'gripper'))
+    firmware.start()
+    # Bound but not serving yet: start requests reach the port and are never answered.
+    box_1 = NetFTEmulator(host='127.0.0.6', port=0, rate_hz=BOX_RATE_HZ, offsets=OFFSETS[0])
+    port = box_1.address[1]
+    box_2 = NetFTEmulator(host='127.0.0.5', port=port, rate_hz=BOX_RATE_HZ, offsets=OFFSETS[1])
+    cell = Cell(firmware, [box_1, box_2], port)
+    try:
+        rig = rig_factory(cell.overrides(**{
+            'ft.start_retries': 2, 'ft.start_wait': 0.05,
+            'reconnect.initial_delay': 0.1, 'reconnect.max_delay': 0.4}))
+        diags = rig.subscribe(DiagnosticArray, '/diagnostics')
+        rig.start()
+        node = rig.node
+        assert 'finger 1 Net F/T' in node.last_error and '127.0.0.6' in node.last_error
+        assert rig.spin_until(lambda: any(
+            s.name.endswith('ft_1') and s.level == b'\x02' and 'not open after' in s.message
+            for d in diags[-3:] for s in d.status)), [
+            (s.name, s.message) for d in diags[-1:] for s in d.status]
+        assert rig.spin_until(lambda: rig.status().line_count > 50)  # the loop runs meanwhile
+        assert not rig.status().ft_fresh
+        box_1.start()  # the boxes finish booting
+        box_2.start()
+        assert rig.spin_until(lambda: all(c.client is not None and
+                                          c.sample_age(node.now()) < 0.1
+                                          for c in node.channels), 15.0)
+        reply = rig.call('gripper/bias_ft')
+        assert reply.success, reply.message
+        assert rig.spin_until(lambda: rig.status().ft_fresh and rig.status().ft_biased)
+        # Cleanup ends the attempts and the streams (nothing is left running).
+        from rclpy.lifecycle import TransitionCallbackReturn
+        assert node.trigger_deactivate() == TransitionCallbackReturn.SUCCESS
+        assert node.trigger_cleanup() == TransitionCallbackReturn.SUCCESS
+        assert rig.spin_until(lambda: not box_1.streaming and not box_2.streaming, 5.0)
+    finally:
+        firmware.stop()
+        box_1.stop()
+        box_2.stop()
+
+
 def test_unplugged_port_safe_state_reconnect_and_not_armed_until_arm(cell: Cell,
                                                                      rig_factory) -> None:
     from slip_msgs.msg import GripperStatus

@@ -435,6 +435,40 @@ def test_box_reboot_loses_the_bias_until_biased_again(box: NetFTEmulator, mode: 
         channel.close()
 
 
+def test_device_bias_ignores_untared_records_still_queued_from_the_old_stream(
+        box: NetFTEmulator) -> None:
+    """A busy host: the reader is held up while the box streams, so records sent before the
+    bias command (0x0042) are read after it. They carry the old tare and must stay out of the
+    host window, which opens with the box's new stream: the result reads zero unloaded."""
+    hold = threading.Event()
+    held = threading.Event()
+    sink = SinkLog()
+
+    def busy_host_sink(finger: int, stamp: float, wrench) -> None:
+        if hold.is_set():
+            hold.clear()
+            held.set()
+            time.sleep(0.15)  # the reader thread is descheduled; the box keeps sending
+        sink(finger, stamp, wrench)
+
+    channel = open_channel(box, busy_host_sink, bias_mode='device')  # type: ignore[arg-type]
+    try:
+        assert wait_until(lambda: sink.count() > 50)  # streaming, not tared (−2.5 N on Fz)
+        hold.set()
+        assert held.wait(2.0)
+        time.sleep(0.08)  # ≈ 80 untared records of the old stream queue up in the socket
+        ok, message = run_bias([channel], time.monotonic, 1.0)
+        assert ok, message
+        assert box.biases == 1
+        n = sink.count()
+        assert wait_until(lambda: sink.count() > n + 50)
+        with sink.lock:
+            latest = sink.items[-1][1]
+        assert latest == pytest.approx((0.0,) * 6, abs=1e-3), latest
+    finally:
+        channel.close()
+
+
 def test_two_boxes_on_one_host_on_their_own_ports() -> None:
     """Per-box UDP and HTTP ports: two emulators on 127.0.0.1, read through their configs."""
     boxes = [NetFTEmulator(scale=SCALE, serve_http=True, offsets=(0.0, 0.0, fz, 0.0, 0.0, 0.0))

@@ -219,3 +219,91 @@ def test_error_records_and_a_reboot_in_device_bias_mode_never_reach_the_wrench_t
         probe_exec.shutdown()
         node.destroy_node()
         probe.destroy_node()
+
+
+def test_bias_service_refuses_while_the_box_or_the_gripper_status_says_the_pads_are_loaded(
+        ros_context: Any) -> None:
+    """A direct call of finger_k/ft/bias (ft.mode topic) cannot bias under load: the box's
+    own bias-removed force and the gripper driver's status both refuse it, with the reason."""
+    from rclpy.executors import MultiThreadedExecutor, SingleThreadedExecutor
+    from rclpy.lifecycle import TransitionCallbackReturn
+    from rclpy.node import Node
+    from std_srvs.srv import Trigger
+
+    from slip_msgs.msg import GripperStatus
+    from slip_cell_common.node_main import shutdown_lifecycle
+    from slip_cell_common.qos import SENSOR_PUB
+    from slip_gripper_driver.netft_driver_node import NetFTDriverNode
+    from slip_cell_common.testing import SpinThread, call_service, spin_until
+
+    load = {'fz': 0.0}  # [N] on top of the offsets: what the pads squeeze
+    emu = NetFTEmulator(host='127.0.0.1', port=0, rate_hz=1000.0,
+                        offsets=(0.0, 0.0, OFFSET_FZ, 0.0, 0.0, 0.0), noise_std=0.01, seed=5,
+                        force_source=lambda _t: (0.0, 0.0, load['fz'], 0.0, 0.0, 0.0))
+    emu.start()
+    node = NetFTDriverNode(context=ros_context, parameter_overrides=overrides(emu.address[1]))
+    executor = MultiThreadedExecutor(num_threads=2, context=ros_context)
+    executor.add_node(node)
+    spinner = SpinThread(executor).start()
+    probe = Node('probe', context=ros_context)
+    probe_exec = SingleThreadedExecutor(context=ros_context)
+    probe_exec.add_node(probe)
+    client = probe.create_client(Trigger, 'finger_2/ft/bias')
+    status_pub = probe.create_publisher(GripperStatus, 'gripper/status', SENSOR_PUB)
+
+    def bias() -> Any:
+        reply = call_service(probe_exec, client, Trigger.Request(), TIMEOUT_S)
+        assert reply is not None
+        return reply
+
+    def gripper_says(**fields: Any) -> None:
+        msg = GripperStatus(armed=True, **fields)
+        seen = node.now()
+        for _ in range(20):  # until the driver has it (discovery takes a moment)
+            status_pub.publish(msg)
+            if spin_until(probe_exec, lambda: node._gripper_load is not None and
+                          node._gripper_load.received >= seen and
+                          node._gripper_load.force_target == msg.force_target and
+                          node._gripper_load.in_contact == msg.in_contact, 0.2):
+                return
+        raise AssertionError('the driver never received the gripper status')
+
+    try:
+        assert node.trigger_configure() == TransitionCallbackReturn.SUCCESS, node.last_error
+        assert node.trigger_activate() == TransitionCallbackReturn.SUCCESS
+        assert spin_until(probe_exec, lambda: node.channel is not None and
+                          node.channel.sample_age(node.now()) < 0.05, TIMEOUT_S)
+        first = bias()  # no gripper running, nothing on the pads: allowed, with the caveat
+        assert first.success, first.message
+        assert 'no recent gripper status' in first.message
+        biases_done = node.channel.accumulator.offsets
+
+        load['fz'] = -6.0  # the pads squeeze: 6 N of normal force on the biased box
+        assert spin_until(probe_exec, lambda: (node.channel.normal_force(node.now(), 0.1)
+                                               or 0.0) < -5.5, TIMEOUT_S)
+        refused = bias()
+        assert not refused.success
+        assert 'finger 2 F/T measures 6.0 N of normal force' in refused.message
+        assert node.channel.accumulator.offsets == biases_done  # the old bias stays
+
+        load['fz'] = 0.0  # unloaded box, but the gripper squeezes (e.g. another finger)
+        assert spin_until(probe_exec, lambda: abs(
+            node.channel.normal_force(node.now(), 0.1) or 9.0) < 0.2, TIMEOUT_S)
+        gripper_says(force_target=10.0, force_cmd=10.0)
+        refused = bias()
+        assert not refused.success and 'squeezing target of 10.0 N' in refused.message
+        gripper_says(in_contact=True)
+        refused = bias()
+        assert not refused.success and 'the gripper reports contact' in refused.message
+        gripper_says(force_target=-8.0, force_cmd=-8.0)  # opened: allowed, no caveat
+        allowed = bias()
+        assert allowed.success, allowed.message
+        assert 'no recent gripper status' not in allowed.message
+    finally:
+        shutdown_lifecycle(node)
+        spinner.stop()
+        executor.shutdown()
+        probe_exec.shutdown()
+        node.destroy_node()
+        probe.destroy_node()
+        emu.stop()

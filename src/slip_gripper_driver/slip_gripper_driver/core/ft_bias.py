@@ -89,7 +89,20 @@ class BiasAccumulator:
         with self._lock:
             if self.state == BiasState.COLLECTING:
                 self._collect(t, wrench)
-            off = self.offsets
+        return self.apply(wrench)
+
+    def fail(self, message: str) -> None:
+        """End the current window (collecting, or failed just now) as failed with ``message``;
+        the previous offsets stay."""
+        with self._lock:
+            if self.state in (BiasState.COLLECTING, BiasState.FAILED):
+                self.state = BiasState.FAILED
+                self.message = message
+
+    def apply(self, wrench: Sequence[float]) -> Wrench | None:
+        """``wrench`` with the current offsets removed, or None when not biased (collects
+        nothing)."""
+        off = self.offsets
         if off is None:
             return None
         return (wrench[0] - off[0], wrench[1] - off[1], wrench[2] - off[2],
