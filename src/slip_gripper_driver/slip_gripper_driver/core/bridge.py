@@ -32,7 +32,9 @@ Fail-safe rules (issue 5 item 2, hardware_protocols §7):
   unprocessed (the host was descheduled, the firmware kept sending) is a host stall: nothing
   is written, the firmware keeps the last command, and the first line processed afterwards
   reports ``'host_stall'`` with how late it was; only a stall longer than
-  ``link.host_stall_limit`` writes the safe voltage and disarms. A read/write error or a
+  ``link.host_stall_limit`` writes the safe voltage and disarms. A stall is timed from the
+  last check that found the port empty (bytes seen later arrived after it), so a device that
+  resumes after a gap is not taken for a host that was stalled through the whole gap. A read/write error or a
   vanished port is reported by the link at once. With a 10 ms timer, a silent link is
   detected within ``stale_after`` + 10 ms = 30 ms.
 * Backlog (`on_lines`): lines read together are stamped one firmware period apart (the
