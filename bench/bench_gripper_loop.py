@@ -450,6 +450,7 @@ def run_hold(duration_s: float, target_n: float, rt_priority: int, burners: int,
         'err_max': float(np.max(np.abs(valid))) if valid.size else math.nan,
         'err_rms': float(np.sqrt(np.mean(valid ** 2))) if valid.size else math.nan,
         'within_1N': float(np.mean(np.abs(valid) <= 1.0)) if valid.size else math.nan,
+        'beyond_1N': int(np.sum(np.abs(valid) > 1.0)),
         'ft_missing': int(np.sum(~np.isfinite(error))),
         'cpu': 100 * (cpu1 - cpu0) / (wall1 - wall0),
         'emu_late_ticks': emu.get('late_ticks', -1),
@@ -467,6 +468,13 @@ def run_hold(duration_s: float, target_n: float, rt_priority: int, burners: int,
     print(f'  force error (F/T − target) max {figures["err_max"]:6.2f} N   RMS '
           f'{figures["err_rms"]:5.3f} N   within ±1 N {100 * figures["within_1N"]:5.1f} %   '
           f'(lines without a fresh F/T value: {figures["ft_missing"]})')
+    if figures['beyond_1N']:
+        worst = int(np.nanargmax(np.abs(error)))
+        around = slice(max(0, worst - 10), worst + 11)
+        print(f'  lines beyond ±1 N          {figures["beyond_1N"]:10d}   worst at line {worst} '
+              f'(≈ {worst * PERIOD_S:.1f} s into the hold); around it, F/T force [N]: '
+              + ' '.join(f'{x:.1f}' for x in f[around]) + '; voltage [V]: '
+              + ' '.join(f'{x:.2f}' for x in v[around]))
     print(f'  emulator (the firmware)    {figures["emu_long_gaps"]:10d}   sends > 20 ms after '
           f'the previous one (real link gaps, whole run; longest '
           f'{figures["emu_max_gap_ms"]:.1f} ms); late ticks {figures["emu_late_ticks"]}')

@@ -135,9 +135,8 @@ class FtChannel:
         self._device_restarts = 0
         self._latest_biased: tuple[float, float] | None = None  # (stamp [s], Fz [N])
         self._opener: FtOpener | None = None
-        #: Device bias sent: records of the old stream (still untared, perhaps queued in the
-        #: socket on a busy host) are not averaged; the window opens with the new stream.
-        self._await_new_stream = False
+        self._client_lock = threading.Lock()
+        self._closed = False  # `close` was called: no attempt may publish a client any more
 
     @property
     def name(self) -> str:
@@ -158,7 +157,7 @@ class FtChannel:
         else:
             scale = stream.scale()
             self.limits = merge_limits(stream.measuring_range.limits(), None)
-        self.client = NetFTClient(
+        client = NetFTClient(
             self.address, scale=scale, clock=self._clock, on_sample=self.on_sample,
             port=self.port, start_retries=self._start.start_retries,
             start_wait_s=self._start.start_wait, restart_after_s=stream.restart_after,
@@ -166,12 +165,17 @@ class FtChannel:
             restart_initial_s=self._restart[0], restart_max_s=self._restart[1],
             thread_setup=self._thread_setup)
         try:
-            self.client.open()
-            self.client.start()
+            client.open()
+            client.start()
         except NetFTError:
-            self.client.close()
-            self.client = None
+            client.close()
             raise
+        with self._client_lock:  # an attempt of the opener thread may end after `close`
+            if not self._closed:
+                self.client = client
+                return
+        client.close()
+        raise NetFTError(f'{self.name}: the channel was closed while the box was opened')
 
     def keep_opening(self, first_error: str, on_event: EventSink | None = None) -> None:
         """`open` failed with ``first_error``: retry it on a thread with the restart back-off
@@ -183,32 +187,37 @@ class FtChannel:
     def close(self) -> None:
         """Stop open attempts and streaming (0x0000), end the reader thread, close the socket."""
         self.publishing = False
+        with self._client_lock:
+            self._closed = True
         opener, self._opener = self._opener, None
         if opener is not None:
             opener.stop()
-        if self.client is not None:
-            self.client.close()
-            self.client = None
+        with self._client_lock:
+            client, self.client = self.client, None
+        if client is not None:
+            client.close()
 
     def supervise(self, now: float, receive_timeout_s: float) -> None:
         """Re-request a silent stream (with back-off) and fail a starved bias window."""
-        if self.client is not None:
-            self.client.supervise(now, receive_timeout_s)
-        if self.accumulator.poll(now) != BiasState.COLLECTING:
-            self._end_device_wait()
+        client = self.client
+        if client is not None:
+            client.supervise(now, receive_timeout_s)
+        acc = self.accumulator
+        if acc.poll(now) != BiasState.COLLECTING:
+            self._check_tare(acc)
             self._bias_done.set()
 
     def finish_bias_window(self) -> None:
         """End the current window now with what it collected (samples stopped)."""
-        self._end_device_wait()
-        self.accumulator.poll(math.inf)
+        acc = self.accumulator
+        acc.poll(math.inf)
+        self._check_tare(acc)
 
-    def _end_device_wait(self) -> None:
-        """A window that ended while still waiting for the tared stream says so."""
-        if self._await_new_stream:
-            self._await_new_stream = False
-            self.accumulator.fail('device bias failed: the box started no new stream after '
-                                  'the bias command (0x0042)')
+    def _check_tare(self, acc: BiasAccumulator) -> None:
+        """A failed window after a device bias dropped the offsets: the bias is lost (F/T
+        kept from the loop until a bias succeeds), as after a box restart."""
+        if acc.tare_lost and not acc.biased and not self._bias_lost:
+            self._bias_lost = True
 
     def apply(self, stream: FtStreamParams, bias: BiasParams) -> None:
         """Adopt run-time changes (decimation, raw and error publishing, rates, bias)."""
@@ -240,13 +249,12 @@ class FtChannel:
             fresh = b.accumulator(BIAS_TIMEOUT_S)
             fresh.offsets, fresh.message = acc.offsets, acc.message  # keep the valid bias
             self.accumulator = acc = fresh
-        device = b.mode == 'device' and self.client is not None
-        self._await_new_stream = device
-        acc.start(t)
+        client = self.client
+        device = b.mode == 'device' and client is not None
+        acc.start(t, after_device_bias=device)
         self._bias_done.clear()  # after start(): a sample in between cannot end the wait
-        if device:
-            assert self.client is not None
-            self.client.set_device_bias()  # and the start request: a new stream follows
+        if client is not None and device:
+            client.set_device_bias()  # and the start request: a new stream follows
 
     def wait_bias(self, timeout_s: float) -> bool:
         """Block until the current window closed or ``timeout_s`` [s] passed."""
@@ -270,6 +278,12 @@ class FtChannel:
     def bias_lost(self) -> bool:
         """The box restarted after a bias; nothing reaches the loop until a new bias."""
         return self._bias_lost
+
+    @property
+    def bias_lost_reason(self) -> str:
+        """Why the bias is lost: a box restart, or a failed device bias."""
+        acc = self.accumulator
+        return acc.message if acc.tare_lost else BIAS_LOST
 
     def health(self) -> FtHealth:
         """Validity counters (diagnostics)."""
@@ -298,13 +312,8 @@ class FtChannel:
                 self.publish_raw(sample.stamp, sample.wrench)
             return
         acc = self.accumulator
-        if self._await_new_stream and sample.new_stream:
-            self._await_new_stream = False
-            acc.start(sample.stamp)  # the tared stream: the window opens here
-        if self._await_new_stream:
-            biased = acc.apply(sample.wrench)
-        else:
-            biased = acc.add(sample.stamp, sample.wrench)
+        biased = acc.add(sample.stamp, sample.wrench, sample.new_stream)
+        self._check_tare(acc)
         if acc.state != BiasState.COLLECTING and not self._bias_done.is_set():
             self._bias_done.set()
         if self._bias_lost and acc.biased:
@@ -378,7 +387,8 @@ def ft_report(s: NetFTStats, now: float, expected_hz: float, tolerance: float,
     if age > stale_after_s:
         return Report(Level.ERROR, f'{s.address}: no data for {age:.3f} s', values)
     if health.bias_lost:
-        return Report(Level.ERROR, f'{s.address}: {BIAS_LOST}; F/T withheld from the loop '
+        reason = acc.message if acc.tare_lost else BIAS_LOST
+        return Report(Level.ERROR, f'{s.address}: {reason}; F/T withheld from the loop '
                       'until biased again (pads unloaded)', values)
     if s.status_level == Level.ERROR:
         return Report(Level.ERROR, f'{s.address}: {s.status_text}; records dropped', values)

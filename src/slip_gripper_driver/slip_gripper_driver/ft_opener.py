@@ -5,10 +5,10 @@ A box that is still booting, unplugged or unreachable when ``gripper_driver`` co
 not leave the driver dead until someone reconfigures it. `FtOpener` repeats the channel's
 ``open`` (read ``netftapi2.xml`` if asked, open the socket, start the stream) on a thread of
 its own, with exponential back-off (``reconnect.initial_delay`` doubling up to
-``reconnect.max_delay``), until it succeeds or `FtOpener.stop` is called. Until then the loop
-has no F/T data from that finger and falls back as for stale F/T (open loop, then the safe
-hold force). The back-off is timed with a monotonic clock; nothing here touches the device's
-stamps.
+``reconnect.max_delay``), until it succeeds or `FtOpener.stop` is called. Until then that
+finger has no F/T data, so no bias can be taken (``gripper/bias_ft`` is refused) and the loop
+runs open loop, as it does before any bias. The back-off is timed with a monotonic clock;
+nothing here touches the device's stamps.
 """
 from __future__ import annotations
 
@@ -34,11 +34,7 @@ class Openable(Protocol):
         ...
 
     def open(self) -> None:
-        """Open the box; raises `NetFTError`."""
-        ...
-
-    def close(self) -> None:
-        """Stop streaming and close."""
+        """Open the box; raises `NetFTError` (any exception counts as a failed attempt)."""
         ...
 
 
@@ -98,7 +94,8 @@ class FtOpener:
                                 self._policy.time_until_next() if running else 0.0)
 
     def stop(self, timeout_s: float = 10.0) -> None:
-        """End the attempts; an attempt in progress finishes (and is closed) first."""
+        """End the attempts; an attempt in progress finishes first (the channel refuses to
+        keep what it opens after its `close`)."""
         self._stop.set()
         if self._thread is not threading.current_thread():
             self._thread.join(timeout_s)
@@ -112,17 +109,18 @@ class FtOpener:
         while not self._stop.wait(self._policy.time_until_next()):
             try:
                 channel.open()
-            except NetFTError as exc:
+            except Exception as exc:  # a half-booted box can fail in many ways
+                text = str(exc) if isinstance(exc, NetFTError) else \
+                    f'{type(exc).__name__}: {exc}'
                 with self._lock:
                     self._attempts += 1
-                    self._last_error = str(exc)
+                    self._last_error = text
                     delay = self._policy.record_failure()
-                self._say('warn', f'{channel.name}: Net F/T still not open (attempt '
-                                  f'{self._attempts}: {exc}); next attempt in {delay:.2f} s')
+                if not self._stop.is_set():
+                    self._say('warn', f'{channel.name}: Net F/T still not open (attempt '
+                                      f'{self._attempts}: {text}); next attempt in '
+                                      f'{delay:.2f} s')
                 continue
-            if self._stop.is_set():  # stopped while this attempt ran: undo it
-                channel.close()
-                return
             with self._lock:
                 self._attempts += 1
                 self._opened = True

@@ -11,9 +11,10 @@ Lifecycle: configure opens the port and starts both RDT streams. A port that can
 yet (missing, busy) is logged and configure succeeds without it: activate then keeps opening it
 with back-off (``reconnect.*``) until it works or the node is deactivated. A Net F/T box that
 does not answer yet (booting, unplugged) is logged too and opened with back-off on a thread of
-its own (`ft_opener`) until it streams or the node is cleaned up; meanwhile the loop runs as
-with stale F/T. Activate arms and starts the reader and the link watchdog (a thread of the core
-checking every 5 ms, independent of the executor); deactivate, cleanup and shutdown write the
+its own (`ft_opener`) until it streams or the node is cleaned up; meanwhile no bias can be
+taken and the loop runs open loop, as before any bias. Activate arms and starts the reader
+and the link watchdog (a thread of the core checking every 5 ms, independent of the
+executor); deactivate, cleanup and shutdown write the
 safe voltage **first**, and cleanup/shutdown undo the GC freeze of configure (see
 `core.realtime`). Link faults, reconnections and firmware restarts disarm: no force is
 applied until ``gripper/arm``. ``gripper/bias_ft`` is refused while the pads may be loaded
@@ -228,14 +229,15 @@ class GripperDriverNode(LifecycleNode):
                     channel.open()
                 except NetFTError as exc:
                     # Booting, unplugged or unreachable: configured without it; the channel
-                    # keeps opening it with back-off (the loop falls back as for stale F/T).
+                    # keeps opening it with back-off (no bias meanwhile: the loop runs open
+                    # loop, as before any bias).
                     problem = f'finger {finger} Net F/T: {exc}'
                     self.last_error = '; '.join(filter(None, (self.last_error, problem)))
                     self.get_logger().error(
                         f'{problem}; configured without it: opened with back-off '
                         f'({cfg.reconnect.initial_delay:g} s doubling up to '
                         f'{cfg.reconnect.max_delay:g} s) until it works or the node is cleaned '
-                        'up; until then the loop runs without this finger\'s F/T')
+                        'up; until then gripper/bias_ft is refused and the loop runs open loop')
                     channel.keep_opening(str(exc), self._log_event)
                 self.channels.append(channel)
         self._create_endpoints(cfg)

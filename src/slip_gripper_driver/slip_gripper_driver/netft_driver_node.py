@@ -7,7 +7,8 @@ Publishes ``finger_<k>/ft/wrench`` (bias removed; nothing before the first bias)
 
 ``finger_<k>/ft/bias`` is refused, with the reason, while the pads may be loaded: this box
 measures normal force, or the newest ``gripper/status`` reports a squeezing target, command or
-contact (`standalone_bias_guard`; ``gripper/bias_ft`` of the gripper driver checks more).
+grasp force (`standalone_bias_guard`; ``gripper/bias_ft`` of the gripper driver checks more);
+``bias.on_activate`` is subject to the same check.
 
 ``finger_<k>/ft/wrench`` carries measurements only: records with an error in the status word,
 beyond the measuring range, or taken after a box restart lost the bias are never published on
@@ -42,9 +43,9 @@ from slip_cell_common.qos import SENSOR_PUB, SENSOR_SUB, overridable
 from slip_cell_common.core.monitors import Level, Report
 from slip_gripper_driver.core.netft_client import NetFTError
 from slip_cell_common.core.param_schema import ParameterError
-from slip_gripper_driver.ft_channel import (BIAS_LOST, FT_SUPERVISE_PERIOD_S, FtChannel,
+from slip_gripper_driver.ft_channel import (FT_SUPERVISE_PERIOD_S, FtChannel,
                                             run_bias, wrench_publisher)
-from slip_gripper_driver.core.standalone_bias_guard import (GripperLoadView,
+from slip_gripper_driver.core.standalone_bias_guard import (BiasGuardVerdict, GripperLoadView,
                                                              standalone_bias_verdict)
 from slip_gripper_driver.node_params import NetFTDriverParams
 
@@ -131,7 +132,11 @@ class NetFTDriverNode(LifecycleNode):
         assert self.channel is not None
         self.channel.publishing = True
         if self._cfg.bias.on_activate:
-            self.channel.start_bias(self.now())
+            refusal = self._bias_verdict(self.channel).refusal
+            if refusal is None:
+                self.channel.start_bias(self.now())
+            else:
+                self.get_logger().error(f'bias.on_activate: bias refused: {refusal}')
         return super().on_activate(state)
 
     def on_deactivate(self, state: LifecycleState) -> TransitionCallbackReturn:
@@ -179,7 +184,8 @@ class NetFTDriverNode(LifecycleNode):
             self._bias_lost_logged = channel.bias_lost
             if channel.bias_lost:
                 k = channel.finger
-                self.get_logger().error(f'{channel.name}: {BIAS_LOST}; finger_{k}/ft/wrench '
+                self.get_logger().error(f'{channel.name}: {channel.bias_lost_reason}; '
+                                        f'finger_{k}/ft/wrench '
                                         f'withheld until finger_{k}/ft/bias succeeds (bias '
                                         'with the pads unloaded)')
 
@@ -196,10 +202,7 @@ class NetFTDriverNode(LifecycleNode):
             response.success, response.message = False, 'netft_driver is not configured'
             return response
         cfg = self._cfg
-        now = self.now()
-        verdict = standalone_bias_verdict(
-            now, cfg.bias_guard, cfg.finger,
-            channel.normal_force(now, cfg.receive_timeout), self._gripper_load)
+        verdict = self._bias_verdict(channel)
         if verdict.refusal is not None:
             response.success, response.message = False, f'bias refused: {verdict.refusal}'
             self.get_logger().error(response.message)
@@ -211,10 +214,19 @@ class NetFTDriverNode(LifecycleNode):
         log_event(self.get_logger(), 'info' if ok else 'error', f'bias: {message}')
         return response
 
+    def _bias_verdict(self, channel: FtChannel) -> BiasGuardVerdict:
+        """May this box be biased now (`standalone_bias_guard`)?"""
+        cfg = self._cfg
+        now = self.now()
+        return standalone_bias_verdict(now, cfg.bias_guard, cfg.finger,
+                                       channel.normal_force(now, cfg.receive_timeout),
+                                       self._gripper_load)
+
     def _on_gripper_status(self, msg: GripperStatus) -> None:
         self._gripper_load = GripperLoadView(
             received=self.now(), force_target=msg.force_target, force_cmd=msg.force_cmd,
-            armed=msg.armed, safe_state=msg.safe_state, in_contact=msg.in_contact)
+            armed=msg.armed, safe_state=msg.safe_state,
+            measured_grasp_force=msg.measured_grasp_force)
 
     def _diag_ft(self, now: float) -> Report:
         if self.channel is None:

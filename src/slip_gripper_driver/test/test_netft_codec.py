@@ -254,6 +254,49 @@ def test_bias_accumulator_window_settle_and_min_samples() -> None:
     assert acc.poll(2.7) == BiasState.FAILED  # no samples at all
 
 
+def _biased_at(acc: BiasAccumulator, fz: float) -> None:
+    acc.start(0.0)
+    for k in range(200):
+        acc.add(0.001 * k, (0.0, 0.0, fz, 0.0, 0.0, 0.0))
+    assert acc.state == BiasState.DONE
+
+
+def test_a_device_bias_window_averages_only_the_new_stream() -> None:
+    """After 0x0042 the old stream's records (old tare, +2.5 N) are not averaged; the window
+    opens with the first record of the new stream."""
+    acc = BiasAccumulator(duration_s=0.1, min_samples=50, settle_samples=2)
+    _biased_at(acc, 2.5)
+    acc.start(1.0, after_device_bias=True)
+    for k in range(80):  # queued records of the old stream, read late
+        acc.add(1.0 + 1e-5 * k, (0.0, 0.0, 2.5, 0.0, 0.0, 0.0))
+    assert acc.state == BiasState.COLLECTING
+    acc.add(1.01, (0.0, 0.0, 0.01, 0.0, 0.0, 0.0), new_stream=True)
+    for k in range(1, 150):  # the tared stream
+        acc.add(1.01 + 0.001 * k, (0.0, 0.0, 0.0, 0.0, 0.0, 0.0))
+    assert acc.state == BiasState.DONE and not acc.tare_lost
+    assert acc.offsets == pytest.approx((0.0,) * 6, abs=1e-3)
+
+
+def test_a_failed_device_bias_window_drops_the_offsets_it_no_longer_fits() -> None:
+    acc = BiasAccumulator(duration_s=0.1, min_samples=50, settle_samples=2)
+    _biased_at(acc, 2.5)
+    acc.start(1.0, after_device_bias=True)
+    for k in range(100):  # the box keeps its old stream: no new stream ever starts
+        acc.add(1.0 + 0.001 * k, (0.0, 0.0, 0.0, 0.0, 0.0, 0.0))
+    assert acc.poll(1.7) == BiasState.FAILED
+    assert 'started no new stream' in acc.message and 'no longer applies' in acc.message
+    assert acc.tare_lost and not acc.biased
+    # A host window that fails keeps the offsets (nothing changed in the box).
+    _biased_at(acc, 2.5)
+    acc.start(2.0)
+    assert acc.poll(2.7) == BiasState.FAILED and acc.biased and not acc.tare_lost
+    # A box restart during the wait ends it; a new-stream record after that opens nothing.
+    acc.start(3.0, after_device_bias=True)
+    acc.clear('bias lost after device restart')
+    acc.add(3.01, (0.0,) * 6, new_stream=True)
+    assert acc.state == BiasState.IDLE and acc.message == 'bias lost after device restart'
+
+
 def test_ft_params_require_counts_without_config_read() -> None:
     FtParams().validate()
     with pytest.raises(ParameterError, match='required'):

@@ -264,7 +264,7 @@ def test_bias_service_refuses_while_the_box_or_the_gripper_status_says_the_pads_
             if spin_until(probe_exec, lambda: node._gripper_load is not None and
                           node._gripper_load.received >= seen and
                           node._gripper_load.force_target == msg.force_target and
-                          node._gripper_load.in_contact == msg.in_contact, 0.2):
+                          node._gripper_load.force_cmd == msg.force_cmd, 0.2):
                 return
         raise AssertionError('the driver never received the gripper status')
 
@@ -275,7 +275,7 @@ def test_bias_service_refuses_while_the_box_or_the_gripper_status_says_the_pads_
                           node.channel.sample_age(node.now()) < 0.05, TIMEOUT_S)
         first = bias()  # no gripper running, nothing on the pads: allowed, with the caveat
         assert first.success, first.message
-        assert 'no recent gripper status' in first.message
+        assert 'nothing was checked for load' in first.message  # no bias yet to read with
         biases_done = node.channel.accumulator.offsets
 
         load['fz'] = -6.0  # the pads squeeze: 6 N of normal force on the biased box
@@ -292,9 +292,10 @@ def test_bias_service_refuses_while_the_box_or_the_gripper_status_says_the_pads_
         gripper_says(force_target=10.0, force_cmd=10.0)
         refused = bias()
         assert not refused.success and 'squeezing target of 10.0 N' in refused.message
-        gripper_says(in_contact=True)
+        gripper_says(measured_grasp_force=3.0, force_cmd=0.25)
         refused = bias()
-        assert not refused.success and 'the gripper reports contact' in refused.message
+        assert not refused.success and 'the gripper measures 3.0 N of grasp force' in \
+            refused.message
         gripper_says(force_target=-8.0, force_cmd=-8.0)  # opened: allowed, no caveat
         allowed = bias()
         assert allowed.success, allowed.message

@@ -34,9 +34,9 @@ Fail-safe rules (issue 5 item 2, hardware_protocols §7):
   reports ``'host_stall'`` with how late it was; only a stall longer than
   ``link.host_stall_limit`` writes the safe voltage and disarms. A stall is timed from the
   last check that found the port empty (bytes seen later arrived after it), so a device that
-  resumes after a gap is not taken for a host that was stalled through the whole gap. A read/write error or a
-  vanished port is reported by the link at once. With a 10 ms timer, a silent link is
-  detected within ``stale_after`` + 10 ms = 30 ms.
+  resumes after a gap is not taken for a host that was stalled through the whole gap. A
+  read/write error or a vanished port is reported by the link at once. With a 10 ms timer,
+  a silent link is detected within ``stale_after`` + 10 ms = 30 ms.
 * Backlog (`on_lines`): lines read together are stamped one firmware period apart (the
   device's own clock: one line per period), update the parser, observer and status, and only
   the newest telemetry line steps the controller and writes: no burst of catch-up commands.
@@ -269,7 +269,7 @@ class GripperBridge:
             self._rate = _NAN
             self._last_line_t = _NAN
             self._last_write_line_t = _NAN
-            self._ramp_t = self._stall_since = _NAN
+            self._ramp_t = self._stall_since = self._port_empty_t = _NAN
             self._connect_t = self._activate_t = t
             self._gate.rewind(t)
             for i, slot in enumerate(self._ft):
@@ -340,7 +340,7 @@ class GripperBridge:
                 # Waiting since the port was last seen empty, at most since the last line: a
                 # device that resumes after a gap is not a host that stalled all along.
                 empty = self._port_empty_t
-                waited = age if empty != empty else min(age, t - empty)
+                waited = age if empty != empty else max(0.0, min(age, t - empty))
                 return self._host_lagging(waited, pending)
             self._port_empty_t = t
             self._lagging = False

@@ -36,6 +36,11 @@ class BiasAccumulator:
     with the first sample past it; with fewer than ``min_samples`` the bias fails (the previous
     offsets stay). Without samples, `poll` fails it after ``duration_s + timeout_s``.
 
+    A window after a device bias (``start(t, after_device_bias=True)``) opens only with the
+    first sample of the box's new stream (``add(..., new_stream=True)``): samples of the old
+    stream still carry the old tare. Such a window that fails drops the offsets
+    (`tare_lost`): the box subtracts a new tare now, so the old offsets no longer fit.
+
     Args:
         duration_s: Averaging window [s] (0.1 s).
         min_samples: Fewest samples for a valid bias (50).
@@ -60,22 +65,31 @@ class BiasAccumulator:
         self._skipped = 0
         self._count = 0
         self._sum = [0.0] * 6
+        self._after_device_bias = False
+        self._awaiting_stream = False
+        self.tare_lost = False  #: a device-bias window failed: offsets dropped (see above)
 
     @property
     def biased(self) -> bool:
         """True once valid offsets exist."""
         return self.offsets is not None
 
-    def start(self, t: float) -> None:
-        """Begin collecting at ``t`` [s]."""
+    def start(self, t: float, after_device_bias: bool = False) -> None:
+        """Begin collecting at ``t`` [s]; ``after_device_bias``: the box was just told to tare
+        itself and starts a new stream, with which the window opens."""
         with self._lock:
-            self.state = BiasState.COLLECTING
+            self._open(t)
             self.message = 'collecting'
-            self._start = t
-            self._first = math.nan
-            self._skipped = 0
-            self._count = 0
-            self._sum = [0.0] * 6
+            self._after_device_bias = self._awaiting_stream = after_device_bias
+            self.tare_lost = False
+
+    def _open(self, t: float) -> None:
+        self.state = BiasState.COLLECTING
+        self._start = t
+        self._first = math.nan
+        self._skipped = 0
+        self._count = 0
+        self._sum = [0.0] * 6
 
     def clear(self, message: str = 'not biased') -> None:
         """Drop the offsets (unbiased) and end a collection; ``message`` says why."""
@@ -83,26 +97,22 @@ class BiasAccumulator:
             self.offsets = None
             self.state = BiasState.IDLE
             self.message = message
+            self._awaiting_stream = False
 
-    def add(self, t: float, wrench: Sequence[float]) -> Wrench | None:
-        """Feed one raw wrench (N, N·m) stamped ``t`` [s]; returns it bias-removed or None."""
+    def add(self, t: float, wrench: Sequence[float],
+            new_stream: bool = False) -> Wrench | None:
+        """Feed one raw wrench (N, N·m) stamped ``t`` [s]; returns it bias-removed or None.
+
+        ``new_stream``: the first sample of a stream the box started (numbering from 1).
+        """
         with self._lock:
             if self.state == BiasState.COLLECTING:
-                self._collect(t, wrench)
-        return self.apply(wrench)
-
-    def fail(self, message: str) -> None:
-        """End the current window (collecting, or failed just now) as failed with ``message``;
-        the previous offsets stay."""
-        with self._lock:
-            if self.state in (BiasState.COLLECTING, BiasState.FAILED):
-                self.state = BiasState.FAILED
-                self.message = message
-
-    def apply(self, wrench: Sequence[float]) -> Wrench | None:
-        """``wrench`` with the current offsets removed, or None when not biased (collects
-        nothing)."""
-        off = self.offsets
+                if self._awaiting_stream and new_stream:
+                    self._awaiting_stream = False
+                    self._open(t)  # the tared stream: the window opens here
+                if not self._awaiting_stream:
+                    self._collect(t, wrench)
+            off = self.offsets
         if off is None:
             return None
         return (wrench[0] - off[0], wrench[1] - off[1], wrench[2] - off[2],
@@ -141,6 +151,15 @@ class BiasAccumulator:
         else:
             self.state = BiasState.FAILED
             self.message = f'bias failed: {self._count} samples, {self.min_samples} required'
+            if self._awaiting_stream:
+                self.message = ('device bias failed: the box started no new stream after the '
+                                'bias command (0x0042)')
+            if self._after_device_bias:
+                # The box subtracts a new tare now: offsets taken over the old one are wrong.
+                self.offsets = None
+                self.tare_lost = True
+                self.message += '; the previous bias no longer applies'
+        self._awaiting_stream = False
 
 
 @dataclass(frozen=True)
