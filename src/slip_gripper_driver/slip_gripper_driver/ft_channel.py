@@ -177,6 +177,11 @@ class FtChannel:
         client.close()
         raise NetFTError(f'{self.name}: the channel was closed while the box was opened')
 
+    def input_pending(self) -> int:
+        """Bytes of records waiting unread at this box's socket (0 when not open)."""
+        client = self.client
+        return client.input_pending() if client is not None else 0
+
     def keep_opening(self, first_error: str, on_event: EventSink | None = None) -> None:
         """`open` failed with ``first_error``: retry it on a thread with the restart back-off
         until it succeeds or `close` (see `ft_opener`)."""

@@ -240,6 +240,11 @@ class GripperDriverNode(LifecycleNode):
                         'up; until then gripper/bias_ft is refused and the loop runs open loop')
                     channel.keep_opening(str(exc), self._log_event)
                 self.channels.append(channel)
+            # An old F/T sample with records waiting unread is the host's delay, not a silent
+            # box: the loop keeps it stale (open loop) instead of faulting (safe_hold_force).
+            channels = list(self.channels)
+            core.bridge.set_ft_backlog_probe(
+                lambda finger: channels[finger - 1].input_pending() > 0)
         self._create_endpoints(cfg)
         if cfg.realtime.freeze_gc:
             # Everything configure keeps is alive now: later collections never scan it.
@@ -678,6 +683,7 @@ class GripperDriverNode(LifecycleNode):
             ('host_stalls', str(d.host_stalls)),
             ('max_host_stall_s', f'{d.max_host_stall_s:.3f}'),
             ('catch_up_lines', str(d.catch_up_lines)), ('resume_ramps', str(d.resume_ramps)),
+            ('ft_host_lag_steps', str(d.ft_host_lag_steps)),
             ('connect_failures', str(s.connect_failures)),
             ('write_failures', str(d.write_failures)), ('armed', str(d.armed).lower()),
             ('safe_reason', d.safe_reason), ('last_error', s.last_error),

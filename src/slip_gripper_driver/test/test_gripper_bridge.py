@@ -156,6 +156,35 @@ def test_stale_ft_bypasses_then_fault_limits_to_safe_force() -> None:
     assert results[-1].command == b'T-1.28\n'  # open loop 5 N = −1.2766 V
 
 
+def test_ft_records_waiting_unread_keep_an_old_sample_stale_not_a_fault() -> None:
+    """A busy host: the F/T reader is behind while the boxes keep sending (records wait in
+    its socket). Past ft_fault_after that is the host's delay, not a silent box: the loop
+    stays open loop at the target instead of dropping a 40 N grasp to safe_hold_force."""
+    rig = Rig()
+    waiting = {1: True, 2: True}
+    rig.bridge.set_ft_backlog_probe(lambda finger: waiting[finger])
+    rig.run(0.05)
+    rig.bridge.set_grasp_force(40.0, rig.t)
+    rig.run(1.5)
+    rig.ft_on = False  # the readers fall behind; records pile up unread
+    results = telemetry(rig.run(0.3))
+    assert results[-1].motor.bypass_reason == BypassReason.FT_STALE
+    assert min(r.motor.force_target for r in results) == 40.0
+    assert rig.emu.grasp_force > 35.0
+    lagged = rig.bridge.diagnostics(rig.t).ft_host_lag_steps
+    assert lagged > 50
+    waiting[2] = False  # finger 2's box really went silent: an F/T fault after all
+    results = telemetry(rig.run(0.05))
+    assert results[-1].motor.force_target == 5.0
+    # ... and the exemption ends at link.host_stall_limit even with records waiting.
+    waiting[2] = True
+    rig.ft_on = True
+    rig.run(0.5)
+    rig.ft_on = False
+    rig.run(rig.bridge.params.link.host_stall_limit + 0.05)
+    assert telemetry(rig.run(0.01))[-1].motor.force_target == 5.0
+
+
 def test_short_stale_gap_holds_the_last_command_and_the_grasp_by_default() -> None:
     rig = Rig()
     rig.run(0.05)

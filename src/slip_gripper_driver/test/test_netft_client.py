@@ -469,6 +469,34 @@ def test_device_bias_ignores_untared_records_still_queued_from_the_old_stream(
         channel.close()
 
 
+def test_records_waiting_unread_are_seen_at_the_socket_while_the_reader_is_held_up(
+        box: NetFTEmulator) -> None:
+    """`FtChannel.input_pending`: the box keeps sending while the reader is held up (records
+    wait in the socket), and nothing waits once the reader has caught up."""
+    hold = threading.Event()
+    held = threading.Event()
+    release = threading.Event()
+
+    def busy_host_sink(finger: int, stamp: float, wrench) -> None:
+        if hold.is_set():
+            hold.clear()
+            held.set()
+            release.wait(2.0)
+
+    channel = open_channel(box, busy_host_sink)  # type: ignore[arg-type]
+    try:
+        assert wait_until(lambda: channel.sample_age(time.monotonic()) < 0.05)
+        hold.set()
+        assert held.wait(2.0)
+        assert wait_until(lambda: channel.input_pending() > 0, 1.0)
+        release.set()
+        assert wait_until(lambda: channel.input_pending() == 0, 2.0)
+    finally:
+        release.set()
+        channel.close()
+    assert channel.input_pending() == 0  # closed
+
+
 def test_two_boxes_on_one_host_on_their_own_ports() -> None:
     """Per-box UDP and HTTP ports: two emulators on 127.0.0.1, read through their configs."""
     boxes = [NetFTEmulator(scale=SCALE, serve_http=True, offsets=(0.0, 0.0, fz, 0.0, 0.0, 0.0))

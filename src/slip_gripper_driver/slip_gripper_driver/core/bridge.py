@@ -149,6 +149,8 @@ class GripperBridge:
         #: Newest watchdog time [s] at which the port was empty during a telemetry gap (NaN
         #: when none since the last line): bytes seen waiting later arrived after it.
         self._port_empty_t = _NAN
+        self._ft_backlog_probe: Callable[[int], bool] | None = None
+        self._ft_host_lag_steps = 0
         self._last_write_line_t = _NAN
         self._ramp_t = _NAN
         self._ramp_from = 0.0
@@ -396,6 +398,14 @@ class GripperBridge:
             if result.accepted:
                 self._stopped = False
             return result
+
+    def set_ft_backlog_probe(self, probe: Callable[[int], bool] | None) -> None:
+        """``probe(finger)``: records of that finger's box wait unread at the host (its reader
+        is behind). Asked only while a used F/T sample is older than ``ft_fault_after``: with
+        records waiting, the old sample is the host's delay, not a silent box, so the loop
+        treats it as stale (open loop) rather than as an F/T fault (``safe_hold_force``), up
+        to ``link.host_stall_limit``. None (the default, and topic mode): never asked."""
+        self._ft_backlog_probe = probe
 
     def on_ft_sample(self, finger: int, t: float, fz: float, biased: bool) -> None:
         """Store the latest bias-removed normal force of one finger.
@@ -744,6 +754,7 @@ class GripperBridge:
                 ft_biased=(ft[0].biased, ft[1].biased), host_stalls=self._host_stalls,
                 last_host_stall_s=self._last_host_stall_s,
                 max_host_stall_s=self._max_host_stall_s, catch_up_lines=self._catch_up_lines,
+                ft_host_lag_steps=self._ft_host_lag_steps,
                 resume_ramps=self._resume_ramps, contact_angle=self._contact_angle)
 
     @property
@@ -863,7 +874,27 @@ class GripperBridge:
             ft_stamp_1=ft1.stamp, ft_stamp_2=ft2.stamp, ft_biased=biased,
             homed=result is not None, opening=opening,
             opening_rate=self._rate if result is not None else _NAN, stroke=stroke,
-            safe_state=self._safe(), hold_integral=hold_integral)
+            safe_state=self._safe(), hold_integral=hold_integral,
+            ft_host_lag=self._ft_host_lag(t, ft, measurement))
+
+    def _ft_host_lag(self, t: float, ft: tuple[_FtSlot, _FtSlot], measurement: str) -> bool:
+        """Every used F/T sample past ``ft_fault_after`` has newer records waiting unread at
+        the host, for no longer than ``link.host_stall_limit`` (lock held)."""
+        probe = self._ft_backlog_probe
+        if probe is None:
+            return False
+        used = {'finger_1': (1,), 'finger_2': (2,)}.get(measurement, (1, 2))
+        fault_after = self._params.force_control.ft_fault_after
+        limit = self._params.link.host_stall_limit
+        late = [k for k in used if not t - ft[k - 1].stamp <= fault_after]  # NaN: late
+        if not late:
+            return False
+        for k in late:
+            age = t - ft[k - 1].stamp
+            if not age <= limit or not probe(k):
+                return False
+        self._ft_host_lag_steps += 1
+        return True
 
     def _snapshot(self, t: float, ft: tuple[_FtSlot, _FtSlot] | None = None
                   ) -> GripperStatusSnapshot:

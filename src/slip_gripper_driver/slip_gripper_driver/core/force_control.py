@@ -23,7 +23,9 @@ Additions of §2.5, applied in this order each step:
    per ``on_command_timeout``: ``hold`` (keep), ``safe_force`` (``min(F_d, safe_hold_force)``),
    ``open`` (``−max_open_force``) or ``zero`` (0 N); ``command_expired`` reports it.
 3. F/T fault (a used sample older than ``ft_fault_after``, or none): while the loop relies
-   on the F/T (biased), the target is limited to ``safe_hold_force``.
+   on the F/T (biased), the target is limited to ``safe_hold_force``. Not while the box's
+   newer records wait unread at the host (``ft_host_lag``: a busy host, not a silent box):
+   the sample then stays stale (open loop to the target).
 4. Target limits ``F_d ← clip(F_d, −max_open_force, max_grasp_force)``.
 5. Target rate limit: ``F_d`` slews at most ``target_rate_limit`` N/s (0 = off), from 0 N
    after `GraspForceController.reset`; a step with ``dt > 0.1 s`` slews at most 0.1 s worth.
@@ -144,6 +146,9 @@ class ForceLoopInput(NamedTuple):
         safe_state: Apply the safe state (no force) this step.
         hold_integral: Keep the integral this step (the bridge limits the command while it
             resumes after a stall, so the error then is not the controller's to integrate).
+        ft_host_lag: The old F/T sample is the host's delay, not the box's: its newer records
+            wait unread at the host. A sample past ``ft_fault_after`` then stays stale
+            (bypass) instead of faulting to ``safe_hold_force``.
     """
 
     t: float
@@ -161,6 +166,7 @@ class ForceLoopInput(NamedTuple):
     stroke: float = _NAN
     safe_state: bool = False
     hold_integral: bool = False
+    ft_host_lag: bool = False
 
 
 class ForceLoopOutput(NamedTuple):
@@ -367,7 +373,7 @@ class GraspForceController:
             age_1, age_2 = t - inp.ft_stamp_1, t - inp.ft_stamp_2
         stale, fault_after = p.ft_stale_after, p.ft_fault_after
         fresh = math.isfinite(fm) and age_1 <= stale and age_2 <= stale
-        fault = not (age_1 <= fault_after and age_2 <= fault_after)
+        fault = not (age_1 <= fault_after and age_2 <= fault_after) and not inp.ft_host_lag
         return fm, fresh, fault
 
     def _end_stop(self, inp: ForceLoopInput, fd: float) -> bool:

@@ -171,6 +171,8 @@ class BridgeDiagnostics:
     last_host_stall_s: float = 0.0  #: how late the loop was at the newest one [s]
     max_host_stall_s: float = 0.0  #: the longest one [s]
     catch_up_lines: int = 0  #: lines of a backlog that updated the state without a step
+    #: control steps whose old F/T sample was the host's delay (records waiting unread)
+    ft_host_lag_steps: int = 0
     resume_ramps: int = 0  #: command resumptions rate-limited from the last applied value
     #: Motor angle where the pads last touched something [rad]; NaN once they reopened.
     contact_angle: float = float('nan')

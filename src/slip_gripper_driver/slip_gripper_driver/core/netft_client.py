@@ -17,9 +17,12 @@ handles (hardware_protocols §4.3, §4.7):
 """
 from __future__ import annotations
 
+import fcntl
 import math
 import select
 import socket
+import struct
+import termios
 import threading
 from collections import deque
 from dataclasses import dataclass
@@ -299,6 +302,18 @@ class NetFTClient:
             self._latched = 0
             self._latch_reset_sent = True
         self._send(encode_request(RdtCommand.RESET_LATCH, 0))
+
+    def input_pending(self) -> int:
+        """Bytes of the next datagram waiting unread in the socket (0: none or closed): the
+        box has sent records this client's reader has not taken yet."""
+        sock = self._sock
+        if sock is None:
+            return 0
+        try:
+            buf = fcntl.ioctl(sock.fileno(), termios.FIONREAD, b'\0\0\0\0')
+        except (OSError, ValueError):  # closed meanwhile
+            return 0
+        return int(struct.unpack('i', buf)[0])
 
     # ------------------------------------------------------------------ outputs
     def latest(self) -> FtSample | None:
