@@ -507,9 +507,11 @@ def test_a_telemetry_gap_keeps_the_command_and_diagnostics_say_so(cell: Cell,
     assert rig.spin_until(lambda: len(statuses) > 50)
     rig.command(-4.0)
     assert cell.firmware.wait_for(lambda: cell.firmware.emulator.target_voltage_v > 1.0, 3.0)
+    cell.firmware.silence(2.5)
+    assert rig.spin_until(lambda: not rig.status().link_ok, 2.0)
+    # Taken once the link is stale: a line in flight when the silence began is processed.
     held = cell.last_command()
     n = len(cell.commands())
-    cell.firmware.silence(2.5)
 
     def stale_warning() -> bool:
         for array in diags[-3:]:
