@@ -105,6 +105,8 @@ class _FtSlot(NamedTuple):
 
 
 _NO_FT = _FtSlot(_NAN, _NAN, False)
+#: Fingers whose F/T the loop uses, by ``force_control.measurement`` (default: both).
+_USED_FINGERS = {'finger_1': (1,), 'finger_2': (2,)}
 
 
 class GripperBridge:
@@ -883,18 +885,19 @@ class GripperBridge:
         probe = self._ft_backlog_probe
         if probe is None:
             return False
-        used = {'finger_1': (1,), 'finger_2': (2,)}.get(measurement, (1, 2))
         fault_after = self._params.force_control.ft_fault_after
         limit = self._params.link.host_stall_limit
-        late = [k for k in used if not t - ft[k - 1].stamp <= fault_after]  # NaN: late
-        if not late:
-            return False
-        for k in late:
+        lagging = False
+        for k in _USED_FINGERS.get(measurement, (1, 2)):
             age = t - ft[k - 1].stamp
-            if not age <= limit or not probe(k):
+            if age <= fault_after:
+                continue  # fresh enough: no fault from this finger
+            if not age <= limit or not probe(k):  # NaN age: no sample at all
                 return False
-        self._ft_host_lag_steps += 1
-        return True
+            lagging = True
+        if lagging:
+            self._ft_host_lag_steps += 1
+        return lagging
 
     def _snapshot(self, t: float, ft: tuple[_FtSlot, _FtSlot] | None = None
                   ) -> GripperStatusSnapshot:
