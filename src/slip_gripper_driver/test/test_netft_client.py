@@ -537,3 +537,42 @@ def test_emulator_command_line_reboots_and_error_status(capsys: pytest.CaptureFi
                                 '--status', '0x80020000', '--no-stop-on-bias']) == 0
     out = capsys.readouterr().out
     assert 1 <= int(out.rsplit('reboots: ', 1)[1].split()[0]) <= 3
+
+
+def test_records_queued_behind_a_held_up_reader_keep_the_time_they_arrived(
+        box: NetFTEmulator) -> None:
+    """A reader the host held up for 80 ms finds ~80 records queued: each is stamped when it
+    reached the host (kernel arrival stamp), not when it was read, so the loop sees how old
+    they are (read-time stamps made an 80 ms old record look fresh)."""
+    hold = threading.Event()
+    held = threading.Event()
+    delivered: list[tuple[float, FtSample]] = []
+
+    def sink(sample: FtSample) -> None:
+        delivered.append((time.monotonic(), sample))
+        if hold.is_set():
+            hold.clear()
+            held.set()
+            time.sleep(0.080)  # the reader thread is held up; the box keeps sending
+
+    host, port = box.address
+    cl = NetFTClient(host, port=port, scale=SCALE, clock=time.monotonic, on_sample=sink,
+                     start_wait_s=0.2, restart_after_s=0.25)
+    cl.open()
+    try:
+        cl.start()
+        assert cl.stats().arrival_stamps, 'this Linux host should give kernel arrival stamps'
+        assert wait_until(lambda: len(delivered) > 20)
+        hold.set()
+        assert held.wait(2.0)
+        first_after = len(delivered)
+        assert wait_until(lambda: len(delivered) > first_after + 60, 3.0)
+        waited = cl.stats().longest_wait_s
+    finally:
+        cl.close()
+    read_t, first = delivered[first_after]
+    assert read_t - first.stamp >= 0.050, f'queued record stamped only {read_t - first.stamp} s old'
+    stamps = [s.stamp for _, s in delivered[first_after:first_after + 60]]
+    assert all(b >= a - 1e-4 for a, b in zip(stamps, stamps[1:]))  # in arrival order
+    assert stamps[-1] - stamps[0] >= 0.030  # spread over the hold, not bunched at the read
+    assert waited >= 0.050

@@ -24,12 +24,14 @@ import socket
 import struct
 import termios
 import threading
+import time
 from collections import deque
 from dataclasses import dataclass
 from collections.abc import Callable
 
 from slip_cell_common.core.monitors import Level
 from slip_cell_common.core.serial_transport import ReconnectPolicy
+from slip_gripper_driver.core import udp_arrival
 from slip_gripper_driver.core.ft_scale import ForceTorqueScale, Wrench
 from slip_gripper_driver.core.netft_status import STATUS_MONITOR_BIT, decode_status
 from slip_gripper_driver.core.rdt_codec import (RDT_PORT, DatagramError, RdtCommand,
@@ -48,7 +50,8 @@ class FtSample:
     """One accepted record in SI.
 
     Attributes:
-        stamp: Acquisition time (injected clock when the datagram arrived) [s].
+        stamp: Acquisition time: when the datagram reached the host, on the injected clock
+            [s] (the kernel's arrival stamp where available, else the time it was read).
         rdt_sequence: RDT record counter.
         ft_sequence: Device measurement counter.
         status: Status word.
@@ -94,6 +97,8 @@ class NetFTStats:
     rate_hz: float
     last_stamp: float
     last_error: str
+    arrival_stamps: bool = False  #: records are stamped with the kernel's arrival time
+    longest_wait_s: float = 0.0  #: longest a datagram waited unread in the socket [s]
 
 
 class RateEstimator:
@@ -127,8 +132,10 @@ class NetFTClient:
     """RDT client of one Net F/T box: one UDP socket, one reader thread.
 
     The reader thread wakes when a datagram is pending, drains **every** pending datagram,
-    stamps each with the injected clock, validates it (size, sequence), converts accepted
-    records to SI and calls ``on_sample`` for each, in order (HW-7, §4.6).
+    stamps each with the time it reached the host on the injected clock (the kernel's arrival
+    stamp, `udp_arrival`: a reader held up by a busy host does not make old records look
+    fresh), validates it (size, sequence), converts accepted records to SI and calls
+    ``on_sample`` for each, in order (HW-7, §4.6).
 
     Args:
         address: Box IP or host name.
@@ -149,6 +156,9 @@ class NetFTClient:
         restart_max_s: Largest such delay [s] (exponential back-off in between).
         thread_setup: Called first on the reader thread (scheduling priority, see
             `realtime.ThreadTuning.apply`); an exception there is recorded in ``last_error``.
+        wall_clock: ``CLOCK_REALTIME`` [s] (``time.time``), the clock of the kernel's
+            arrival stamps; only differences of it are used (how long a datagram waited).
+        arrival_stamps: Use the kernel's arrival stamps where the platform has them.
     """
 
     def __init__(self, address: str, *, scale: ForceTorqueScale, clock: Clock,
@@ -157,8 +167,13 @@ class NetFTClient:
                  bind_address: str = '', resync_after: int = 16, restart_after_s: float = 0.02,
                  expected_rate_hz: float = 1000.0, restart_initial_s: float = 0.5,
                  restart_max_s: float = 5.0,
-                 thread_setup: Callable[[], object] | None = None) -> None:
+                 thread_setup: Callable[[], object] | None = None,
+                 wall_clock: Clock = time.time, arrival_stamps: bool = True) -> None:
         self.address = address
+        self._wall_clock = wall_clock
+        self._want_arrival_stamps = arrival_stamps
+        self._arrival_stamps = False
+        self._longest_wait_s = 0.0
         self._thread_setup = thread_setup
         self.port = port
         self.scale = scale
@@ -214,6 +229,7 @@ class NetFTClient:
             sock.bind((self._bind_address, 0))
             sock.connect((self.address, self.port))
             sock.setblocking(False)
+            self._arrival_stamps = self._want_arrival_stamps and udp_arrival.enable(sock)
         except OSError as exc:
             raise NetFTError(f'Net F/T {self.name}: cannot open UDP socket: {exc}') from exc
         self._sock = sock
@@ -338,7 +354,8 @@ class NetFTClient:
                 status_level=info.level, status_text=info.text, latched_status=self._latched,
                 rate_hz=self._rate.rate(t),
                 last_stamp=latest.stamp if latest is not None else math.nan,
-                last_error=self._last_error)
+                last_error=self._last_error, arrival_stamps=self._arrival_stamps,
+                longest_wait_s=self._longest_wait_s)
 
     # ------------------------------------------------------------------ internals
     def _send_start(self) -> None:
@@ -395,9 +412,13 @@ class NetFTClient:
             self._restart_if_silent()
 
     def _drain(self, sock: socket.socket) -> None:
+        arrival_stamps = self._arrival_stamps
         while True:
             try:
-                data = sock.recv(65536)
+                if arrival_stamps:
+                    data, waited = udp_arrival.receive(sock, 65536, self._wall_clock)
+                else:
+                    data, waited = sock.recv(65536), None
             except BlockingIOError:
                 return
             except ConnectionRefusedError as exc:
@@ -411,7 +432,13 @@ class NetFTClient:
                     self._socket_errors += 1
                     self._last_error = f'receive from {self.name} failed: {exc}'
                 return
-            self._handle(data, self._clock())
+            now = self._clock()
+            if waited is None:
+                self._handle(data, now)
+                continue
+            if waited > self._longest_wait_s:
+                self._longest_wait_s = waited
+            self._handle(data, now - waited)
 
     def _handle(self, data: bytes, stamp: float) -> None:
         samples: list[FtSample] = []
