@@ -83,8 +83,6 @@ def test_bad_dt_skips_integral_update(dt: float) -> None:
     (dict(fm=0.3), BypassReason.NO_CONTACT),
     (dict(ft_biased=False), BypassReason.NOT_BIASED),
     (dict(target=-5.0), BypassReason.OPEN_COMMAND),
-    (dict(ft_stamp_1=0.9), BypassReason.FT_STALE),
-    (dict(fz_2=math.nan), BypassReason.FT_STALE),
 ])
 def test_bypass_reasons_give_feed_forward_and_reset(kw: dict, reason: BypassReason) -> None:
     kw = dict(kw)
@@ -100,6 +98,21 @@ def test_bypass_reasons_give_feed_forward_and_reset(kw: dict, reason: BypassReas
     # after a bypass the first in-contact step sees e − e_prev = e: heavily damped
     out = ctl.step(contact(1.0 + DT, 10.0, 8.0))
     assert out.gain_scale == pytest.approx(1.0 + 5.0 * 4.0)
+
+
+@pytest.mark.parametrize('kw', [dict(ft_stamp_1=0.9), dict(fz_2=math.nan)])
+def test_a_stale_or_invalid_sample_gives_feed_forward_with_the_integral_held(kw: dict) -> None:
+    ctl = GraspForceController(ForceControlParams())
+    ctl.step(contact(1.0 - DT, 10.0, 5.0))
+    learnt = ctl.step(contact(1.0 - DT / 2, 10.0, 5.0)).integral
+    assert learnt > 0.0
+    out = ctl.step(contact(1.0, 10.0, 5.0, **kw))
+    assert out.bypass_reason == BypassReason.FT_STALE and not out.closed_loop
+    assert out.integral == learnt and out.force_cmd == pytest.approx(10.0 + learnt)
+    assert out.error == 0.0 and out.gain_scale == 1.0
+    # e_prev kept: the next fresh step with the same error is not damped
+    out = ctl.step(contact(1.0 + DT, 10.0, 5.0))
+    assert out.closed_loop and out.gain_scale == pytest.approx(1.0)
 
 
 def test_measurement_selection() -> None:
@@ -174,6 +187,33 @@ def test_ft_fault_limits_target_to_safe_hold_force_when_biased() -> None:
     out = ctl.step(unbiased)  # open loop by design: the F/T is not part of the loop
     assert out.ft_fault and out.force_cmd == 20.0
     assert ctl.step(ForceLoopInput(t=2.0, target=1.0)).ft_fault  # never any sample
+
+
+def test_a_stale_sample_holds_the_learnt_integral_and_the_loop_resumes_bumplessly() -> None:
+    """The plant needs 3 N more than the target: the integral learns it; a few stale samples
+    (a late F/T reader) keep ``u = F_d + I`` instead of dropping the force by 3 N, and the
+    first fresh sample continues from there. A faulted sample clears it (open loop)."""
+    ctl = GraspForceController(ForceControlParams(kp=0.5, gamma=0.0))
+    t, fm = 0.0, 0.0
+    for _ in range(2000):  # first-order plant: grasp force = command − 3 N
+        out = ctl.step(contact(t, 10.0, fm))
+        fm += 0.2 * (out.force_cmd - 3.0 - fm)
+        t += DT
+    assert fm == pytest.approx(10.0, abs=0.01) and out.integral == pytest.approx(3.0, abs=0.02)
+    learnt, settled = out.integral, out.force_cmd
+    for _ in range(5):  # samples 20 ms old: stale, not faulted
+        out = ctl.step(contact(t, 10.0, fm, ft_stamp_1=t - 0.02, ft_stamp_2=t - 0.02))
+        assert out.bypass_reason == BypassReason.FT_STALE and not out.ft_fault
+        assert out.integral == pytest.approx(learnt)
+        assert out.force_cmd == pytest.approx(10.0 + learnt)
+        t += DT
+    out = ctl.step(contact(t, 10.0, fm))
+    assert out.closed_loop and out.force_cmd == pytest.approx(settled, abs=0.02)
+    out = ctl.step(contact(t + DT, 10.0, fm, ft_stamp_1=t - 0.2, ft_stamp_2=t - 0.2))
+    assert out.ft_fault and out.integral == 0.0 and out.force_cmd == 5.0  # safe_hold_force
+    stale = t + 2 * DT - 0.02
+    out = ctl.step(contact(t + 2 * DT, 10.0, fm, ft_stamp_1=stale, ft_stamp_2=stale))
+    assert out.bypass_reason == BypassReason.FT_STALE and out.force_cmd == 10.0  # cleared
 
 
 @pytest.mark.parametrize('policy, expected', [

@@ -33,6 +33,10 @@ Additions of §2.5, applied in this order each step:
    and ``|opening_rate| < end_stop_speed`` for ``end_stop_timeout`` → ``u = 0`` until the next
    target (a new stamp or value).
 7. Bypass as above; additionally a stale F/T sample (older than ``ft_stale_after``) bypasses.
+   A stale bypass that is not an F/T fault holds the integral action learnt so far, frozen:
+   ``u = F_d + I`` (``I`` and ``e_prev`` kept, nothing integrated), so a reader that falls
+   a few samples behind does not step the force by the plant's offset and the loop resumes
+   bumplessly. Every other bypass clears the loop state (``u = F_d``).
    In a bypass with ``F_d > 0`` while homed the approach-speed limit applies:
    ``u = clip(F_d − approach_gain · max(0, v_close − approach_max_speed), 0, F_d)`` with
    ``v_close = −opening_rate`` (``approach_max_speed = 0`` = off).
@@ -177,7 +181,8 @@ class ForceLoopOutput(NamedTuple):
         force_cmd: ``u`` after the command ceiling [N] (the bridge converts it to volts).
         measured_force: ``F_m`` [N]; NaN unless biased and fresh.
         error: ``F_d − F_m`` [N]; 0 in bypass.
-        integral: Integral action ``I`` [N]; 0 in bypass.
+        integral: Integral action ``I`` [N]; the held value in a stale bypass, else 0 in
+            bypass.
         gain_scale: ``s`` [-]; 1 in bypass.
         closed_loop: The PI loop was active this step.
         bypass_reason: Why the loop was open (``NONE`` when closed).
@@ -304,8 +309,12 @@ class GraspForceController:
             reason = BypassReason.NONE
 
         if reason != BypassReason.NONE:
-            self._clear_loop()
-            u = fd
+            # A stale sample (a late reader, not a faulted box) keeps the integral action it
+            # had learnt, frozen: clearing it would step the force by the plant's offset.
+            held = self._integral if reason == BypassReason.FT_STALE and not fault else 0.0
+            if held == 0.0:
+                self._clear_loop()
+            u = fd + held
             if fd > 0.0 and inp.homed and p.approach_max_speed > 0.0 and \
                     math.isfinite(inp.opening_rate):
                 v_close = -inp.opening_rate
@@ -314,7 +323,7 @@ class GraspForceController:
                 if limited < fd:
                     u = limited
                     reason = BypassReason.APPROACH_LIMIT
-            return ForceLoopOutput(fd, self._ceiling(u), measured, 0.0, 0.0, 1.0, False,
+            return ForceLoopOutput(fd, self._ceiling(u), measured, 0.0, held, 1.0, False,
                                    reason, expired, fault)
 
         error = fd - fm
