@@ -63,10 +63,13 @@ WARMUP_S = 1.0
 
 
 def _start_emulator(link: str, seconds: float, with_ft: bool, boxes_at: list[str] | None = None,
-                    priority: int = 0) -> tuple[subprocess.Popen, list[tuple[str, int]]]:
+                    priority: int = 0, truth_path: str = ''
+                    ) -> tuple[subprocess.Popen, list[tuple[str, int]]]:
     cmd = [sys.executable, '-m', 'slip_gripper_driver.core.firmware_emulator', '--link', link,
            '--object-width', '0.03', '--initial-opening', '0.031', '--duration', f'{seconds}',
            '--stats-json', '--priority', str(priority)]
+    if truth_path:
+        cmd += ['--record-truth', truth_path]
     if with_ft:
         cmd += ['--netft', '127.0.0.1:0', '--netft', '127.0.0.1:0']
     for box in boxes_at or []:
@@ -333,6 +336,16 @@ def run_node(duration_s: float, with_ft: bool, rt: RealtimeParams,
           f'armed at the end: {diag.armed}')
 
 
+def _steal_s() -> float:
+    """CPU time the hypervisor took from this virtual machine since boot [s] (0 elsewhere)."""
+    try:
+        with open('/proc/stat') as stat:
+            fields = stat.readline().split()
+        return int(fields[8]) / os.sysconf('SC_CLK_TCK')
+    except (OSError, IndexError, ValueError):
+        return 0.0
+
+
 def _burn() -> subprocess.Popen:
     return subprocess.Popen([sys.executable, '-c', 'while True: pass'])
 
@@ -360,8 +373,10 @@ def run_hold(duration_s: float, target_n: float, rt_priority: int, burners: int,
     port = os.path.join(tmp, 'gripper')
     box_port = _free_port('127.0.0.6')
     hosts = ('127.0.0.6', '127.0.0.5')
+    truth_path = os.path.join(tmp, 'truth.f64')
     proc, _ = _start_emulator(port, duration_s + 30.0, False,
-                              [f'{h}:{box_port}' for h in hosts], priority=emulator_priority)
+                              [f'{h}:{box_port}' for h in hosts], priority=emulator_priority,
+                              truth_path=truth_path)
     context = Context()
     rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)
     overrides = {'autostart': False, 'serial.port': port, 'ft.mode': 'embedded',
@@ -374,6 +389,10 @@ def run_hold(duration_s: float, target_n: float, rt_priority: int, burners: int,
     force = np.full(n_max, np.nan)
     volts = np.full(n_max, np.nan)
     armed = np.zeros(n_max, dtype=bool)
+    line_t = np.full(n_max, np.nan)  # monotonic [s] when the line's command had been written
+    force_cmd = np.full(n_max, np.nan)
+    bypass = np.zeros(n_max, dtype=np.int8)
+    integral = np.full(n_max, np.nan)
     count = [0]
     recording = [False]
     events: list[tuple[str, str]] = []
@@ -386,6 +405,11 @@ def run_hold(duration_s: float, target_n: float, rt_priority: int, burners: int,
             if i < n_max:
                 force[i], volts[i], armed[i] = (status.measured_grasp_force,
                                                 status.voltage_cmd, status.armed)
+                line_t[i] = time.monotonic()
+                motor = result.motor  # type: ignore[attr-defined]
+                if motor is not None:
+                    force_cmd[i], bypass[i], integral[i] = (motor.force_cmd,
+                                                            motor.bypass_reason, motor.integral)
                 count[0] = i + 1
         original_result(result)
 
@@ -414,10 +438,12 @@ def run_hold(duration_s: float, target_n: float, rt_priority: int, burners: int,
         time.sleep(2.0)  # close and settle
         diag0 = node.core.bridge.diagnostics(node.now())
         recording[0] = True
+        steal0 = _steal_s()
         cpu0, wall0 = time.process_time(), time.monotonic()
         time.sleep(duration_s)
         recording[0] = False
         cpu1, wall1 = time.process_time(), time.monotonic()
+        steal1 = _steal_s()
         diag = node.core.bridge.diagnostics(node.now())
         tuning = sorted(set(node._tuning.results.values()))
     finally:
@@ -432,6 +458,10 @@ def run_hold(duration_s: float, target_n: float, rt_priority: int, burners: int,
         proc.send_signal(2)
     out, _ = proc.communicate(timeout=30.0)
     emu = json.loads(out.strip().splitlines()[-1]) if out.strip() else {}
+    truth = np.fromfile(truth_path, dtype=np.float64).reshape(-1, 3) \
+        if os.path.exists(truth_path) else np.zeros((0, 3))
+    truth = truth[(truth[:, 0] >= wall0) & (truth[:, 0] <= wall1)]
+    truth_error = truth[:, 1] - target_n
     n = count[0]
     f, v, a = force[:n], volts[:n], armed[:n]
     error = f - target_n
@@ -447,11 +477,17 @@ def run_hold(duration_s: float, target_n: float, rt_priority: int, burners: int,
         'max_host_stall_ms': 1e3 * diag.max_host_stall_s,
         'catch_up_lines': diag.catch_up_lines - diag0.catch_up_lines,
         'resume_ramps': diag.resume_ramps - diag0.resume_ramps,
+        'max_watchdog_gap_ms': 1e3 * diag.max_watchdog_gap_s,
+        'steal_s': steal1 - steal0,
         'err_max': float(np.max(np.abs(valid))) if valid.size else math.nan,
         'err_rms': float(np.sqrt(np.mean(valid ** 2))) if valid.size else math.nan,
         'within_1N': float(np.mean(np.abs(valid) <= 1.0)) if valid.size else math.nan,
         'beyond_1N': int(np.sum(np.abs(valid) > 1.0)),
         'ft_missing': int(np.sum(~np.isfinite(error))),
+        'truth_ticks': int(truth.shape[0]),
+        'truth_err_max': float(np.max(np.abs(truth_error))) if truth.size else math.nan,
+        'truth_err_rms': float(np.sqrt(np.mean(truth_error ** 2))) if truth.size else math.nan,
+        'truth_beyond_1N': int(np.sum(np.abs(truth_error) > 1.0)),
         'cpu': 100 * (cpu1 - cpu0) / (wall1 - wall0),
         'emu_late_ticks': emu.get('late_ticks', -1),
         'emu_max_gap_ms': 1e3 * emu.get('max_send_gap_s', math.nan),
@@ -465,6 +501,9 @@ def run_hold(duration_s: float, target_n: float, rt_priority: int, burners: int,
     print(f'  host stalls                {figures["host_stalls"]:10d}   (longest '
           f'{figures["max_host_stall_ms"]:.0f} ms over the run; catch-up lines '
           f'{figures["catch_up_lines"]}, resume ramps {figures["resume_ramps"]})')
+    print(f'  driver process paused      longest {figures["max_watchdog_gap_ms"]:6.0f} ms (the '
+          f'watchdog did not run; whole run); CPU stolen by the hypervisor during the hold '
+          f'{figures["steal_s"]:.1f} s')
     print(f'  force error (F/T − target) max {figures["err_max"]:6.2f} N   RMS '
           f'{figures["err_rms"]:5.3f} N   within ±1 N {100 * figures["within_1N"]:5.1f} %   '
           f'(lines without a fresh F/T value: {figures["ft_missing"]})')
@@ -475,6 +514,12 @@ def run_hold(duration_s: float, target_n: float, rt_priority: int, burners: int,
               f'(≈ {worst * PERIOD_S:.1f} s into the hold); around it, F/T force [N]: '
               + ' '.join(f'{x:.1f}' for x in f[around]) + '; voltage [V]: '
               + ' '.join(f'{x:.2f}' for x in v[around]))
+    print(f'  pad force (plant truth)    max error {figures["truth_err_max"]:6.2f} N   RMS '
+          f'{figures["truth_err_rms"]:5.3f} N   ticks beyond ±1 N {figures["truth_beyond_1N"]} '
+          f'of {figures["truth_ticks"]}')
+    if figures['truth_beyond_1N']:
+        _print_worst_truth(truth, target_n, line_t[:n], force_cmd[:n], bypass[:n],
+                           integral[:n], f)
     print(f'  emulator (the firmware)    {figures["emu_long_gaps"]:10d}   sends > 20 ms after '
           f'the previous one (real link gaps, whole run; longest '
           f'{figures["emu_max_gap_ms"]:.1f} ms); late ticks {figures["emu_late_ticks"]}')
@@ -485,6 +530,21 @@ def run_hold(duration_s: float, target_n: float, rt_priority: int, burners: int,
     if len(events) > 8:
         print(f'    ... {len(events) - 8} more events')
     return figures
+
+
+def _print_worst_truth(truth: np.ndarray, target_n: float, line_t: np.ndarray,
+                       force_cmd: np.ndarray, bypass: np.ndarray, integral: np.ndarray,
+                       ft_force: np.ndarray) -> None:
+    """The worst plant-truth tick, ±40 ms of plant force, and the driver's steps then."""
+    worst = int(np.argmax(np.abs(truth[:, 1] - target_n)))
+    t_w = truth[worst, 0]
+    near = np.abs(truth[:, 0] - t_w) <= 0.040
+    print(f'    worst tick: {truth[worst, 1]:.2f} N; plant force every 4 ms from -40 ms: '
+          + ' '.join(f'{x:.1f}' for x in truth[near, 1][::2]))
+    steps = np.flatnonzero(np.abs(line_t - t_w) <= 0.040)
+    print('    driver steps then (ms from worst: F/T force, command N, bypass, integral N): '
+          + '; '.join(f'{1e3 * (line_t[i] - t_w):+.0f}: {ft_force[i]:.1f}, {force_cmd[i]:.1f}, '
+                      f'{bypass[i]}, {integral[i]:.2f}' for i in steps))
 
 
 def main() -> int:

@@ -682,6 +682,7 @@ class GripperDriverNode(LifecycleNode):
             ('link_losses', str(d.link_losses)), ('stale_events', str(d.stale_events)),
             ('host_stalls', str(d.host_stalls)),
             ('max_host_stall_s', f'{d.max_host_stall_s:.3f}'),
+            ('max_watchdog_gap_s', f'{d.max_watchdog_gap_s:.3f}'),
             ('catch_up_lines', str(d.catch_up_lines)), ('resume_ramps', str(d.resume_ramps)),
             ('ft_host_lag_steps', str(d.ft_host_lag_steps)),
             ('connect_failures', str(s.connect_failures)),

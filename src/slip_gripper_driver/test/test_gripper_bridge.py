@@ -536,7 +536,18 @@ def test_a_silent_device_goes_stale_then_resumes_rate_limited_from_the_applied_v
     assert rig.bridge.diagnostics(rig.t).resume_ramps == 1
 
 
-def test_a_host_stall_beyond_the_limit_disarms() -> None:
+def _watch_on_time(rig: Rig, t_from: float, t_to: float, pending: int) -> list:
+    """The watchdog checks every 5 ms from ``t_from`` to ``t_to`` while the reader is stuck
+    (``pending`` bytes wait); returns the results."""
+    out = []
+    t = t_from
+    while t <= t_to + 1e-9:
+        out.append(rig.bridge.check_watchdog(t, input_pending=lambda: pending))
+        t += 0.005
+    return out
+
+
+def test_a_loop_stuck_beyond_the_limit_while_the_watchdog_runs_disarms() -> None:
     rig = Rig()
     rig.run(0.05)
     rig.bridge.set_grasp_force(10.0, rig.t)
@@ -544,10 +555,34 @@ def test_a_host_stall_beyond_the_limit_disarms() -> None:
     t_last = rig.t
     limit = rig.bridge.params.link.host_stall_limit
     n = len(rig.writes)
-    result = rig.bridge.check_watchdog(t_last + limit + 0.01, input_pending=lambda: 4000)
-    assert result.state == LinkState.LAGGING and result.disarmed and 'stalled' in result.reason
+    results = _watch_on_time(rig, t_last + 0.005, t_last + limit + 0.01, 4000)
+    assert all(r.state == LinkState.LAGGING for r in results[4:])
+    assert not any(r.disarmed for r in results[:-3])
+    assert results[-1].disarmed and 'stuck' in results[-1].reason, results[-1]
     assert rig.writes[n:] == [b'T0.00\n'] and not rig.bridge.status(rig.t).armed
     assert not rig.bridge.check_watchdog(t_last + limit + 0.02, lambda: 4000).disarmed  # once
+
+
+def test_a_pause_of_the_whole_driver_process_is_reported_and_does_not_disarm() -> None:
+    """The reader and the watchdog were both held up for 5.6 s (seen beside CPU burners
+    without real-time priority): the firmware kept the last command meanwhile, so the loop
+    resumes rate-limited from it, still armed, instead of dropping the object afterwards."""
+    rig = Rig()
+    rig.run(0.05)
+    rig.bridge.set_grasp_force(10.0, rig.t)
+    rig.run(1.0)
+    t_last = rig.t
+    assert rig.bridge.check_watchdog(t_last + 0.004, lambda: 0).state == LinkState.OK
+    n = len(rig.writes)
+    paused = rig.bridge.check_watchdog(t_last + 5.6, input_pending=lambda: 280 * 9)
+    assert paused.state == LinkState.LAGGING and not paused.disarmed, paused
+    assert 'did not run for 5.6' in paused.reason, paused.reason
+    later = _watch_on_time(rig, t_last + 5.605, t_last + 5.7, 280 * 9)  # loop still behind
+    assert not any(r.disarmed for r in later)
+    assert rig.writes[n:] == [] and rig.bridge.status(rig.t).armed
+    # ... but a loop that then stays stuck while the watchdog runs on time does disarm.
+    stuck = _watch_on_time(rig, t_last + 5.705, t_last + 5.6 + 1.1, 280 * 9)
+    assert any(r.disarmed for r in stuck) and not rig.bridge.status(rig.t).armed
 
 
 def test_a_device_that_resumes_after_a_long_gap_is_not_taken_for_a_stalled_host() -> None:
@@ -578,8 +613,8 @@ def test_a_device_that_resumes_after_a_long_gap_is_not_taken_for_a_stalled_host(
     # A host that really stalled (the watchdog never saw the port empty) is still one.
     rig.run(0.5)
     t_last = rig.t
-    stalled = rig.bridge.check_watchdog(t_last + 1.2, input_pending=lambda: 6000)
-    assert stalled.state == LinkState.LAGGING and stalled.disarmed
+    stalled = _watch_on_time(rig, t_last + 0.005, t_last + 1.2, 6000)
+    assert stalled[-1].state == LinkState.LAGGING and any(r.disarmed for r in stalled)
 
 
 # ---------------------------------------------------------------------------- firmware
@@ -625,3 +660,16 @@ def test_every_write_is_one_complete_command_and_a_connection_flushes_a_fragment
     assert all(command.fullmatch(w) for w in rig.writes) and len(rig.writes) > 500
     # Only the stale fragment of the previous host ever reached the firmware malformed.
     assert rig.emu.malformed_commands == 1 and rig.emu.nonfinite_commands == 0
+
+
+def test_the_longest_watchdog_gap_is_reported_and_inactivity_is_not_one() -> None:
+    rig = Rig()
+    rig.run(0.05)
+    _watch_on_time(rig, rig.t, rig.t + 0.05, 0)
+    assert rig.bridge.diagnostics(rig.t).max_watchdog_gap_s == 0.0  # every 5 ms: no gap
+    rig.bridge.check_watchdog(rig.t + 0.4, lambda: 0)
+    assert rig.bridge.diagnostics(rig.t).max_watchdog_gap_s == pytest.approx(0.35, abs=0.006)
+    rig.bridge.deactivate(rig.t + 0.5)
+    rig.bridge.activate(rig.t + 30.0)
+    rig.bridge.check_watchdog(rig.t + 30.0, lambda: 0)
+    assert rig.bridge.diagnostics(rig.t).max_watchdog_gap_s == pytest.approx(0.35, abs=0.006)

@@ -151,6 +151,10 @@ class GripperBridge:
         #: Newest watchdog time [s] at which the port was empty during a telemetry gap (NaN
         #: when none since the last line): bytes seen waiting later arrived after it.
         self._port_empty_t = _NAN
+        #: Time of the previous watchdog check, and of the first check after the watchdog
+        #: itself was late (the whole driver process did not run) [s].
+        self._last_check_t = _NAN
+        self._checks_resumed_t = _NAN
         self._ft_backlog_probe: Callable[[int], bool] | None = None
         self._ft_host_lag_steps = 0
         self._last_write_line_t = _NAN
@@ -179,6 +183,7 @@ class GripperBridge:
         self._host_stalls = 0
         self._last_host_stall_s = 0.0
         self._max_host_stall_s = 0.0
+        self._max_watchdog_gap_s = 0.0
         self._catch_up_lines = 0
         self._resume_ramps = 0
 
@@ -211,6 +216,7 @@ class GripperBridge:
             self._stopped = False
             self._safe_reason = ''
             self._activate_t = t
+            self._last_check_t = _NAN  # watchdog gaps count from the first check from now
             self._parser.reset()
             self._observer.reset()
             self._controller.reset()
@@ -321,8 +327,18 @@ class GripperBridge:
 
         Writes the safe voltage once when no telemetry arrives; disarms and asks for a
         reconnection once when the link faults. Telemetry waiting at the port is a host stall
-        (`LinkState.LAGGING`): nothing is written unless it lasts ``link.host_stall_limit``.
+        (`LinkState.LAGGING`): nothing is written unless the loop stays stuck for
+        ``link.host_stall_limit`` while this watchdog keeps checking on time. A pause of the
+        whole process (this check itself came more than ``link.stale_after`` after the
+        previous one) is not held against the loop: nothing could be written meanwhile, the
+        firmware kept the last command, and the loop resumes with the lines waiting.
         """
+        gap = t - self._last_check_t
+        if not gap <= self._params.link.stale_after:  # NaN: the first check
+            self._checks_resumed_t = t  # this check is late: the process did not run either
+            if gap > self._max_watchdog_gap_s:  # (NaN compares False)
+                self._max_watchdog_gap_s = gap
+        self._last_check_t = t
         # The usual case (fresh telemetry) without the lock: the watchdog runs every few ms
         # on its own thread, and a lock holder descheduled there would delay the reader.
         # Attribute reads are atomic; a NaN age (no line yet) takes the locked path.
@@ -345,7 +361,8 @@ class GripperBridge:
                 # device that resumes after a gap is not a host that stalled all along.
                 empty = self._port_empty_t
                 waited = age if empty != empty else max(0.0, min(age, t - empty))
-                return self._host_lagging(waited, pending)
+                stuck = min(waited, max(0.0, t - self._checks_resumed_t))
+                return self._host_lagging(waited, stuck, pending)
             self._port_empty_t = t
             self._lagging = False
             if age > p.fault_after:
@@ -361,18 +378,25 @@ class GripperBridge:
             return WatchdogResult(LinkState.STALE, age, False, reason,
                                   held=not self._safe())
 
-    def _host_lagging(self, age: float, pending: int) -> WatchdogResult:
-        """Telemetry waits at the port: the host is behind, not the device (lock held)."""
+    def _host_lagging(self, age: float, stuck: float, pending: int) -> WatchdogResult:
+        """Telemetry waits at the port: the host is behind, not the device (lock held).
+
+        ``age``: how long it waited [s]; ``stuck``: the part of it during which this
+        watchdog ran on time while the loop did not [s]."""
         self._lagging = True
         if age > self._params.link.stale_after:
             self._pending_stall_s = max(self._pending_stall_s, age)
         limit = self._params.link.host_stall_limit
-        if age <= limit:
+        if stuck <= limit:
+            paused = '' if stuck >= age else \
+                f'; the driver process did not run for {age - stuck:.3f} s of it'
             return WatchdogResult(LinkState.LAGGING, age, False,
                                   f'{pending} bytes of telemetry wait unprocessed for '
-                                  f'{age:.3f} s (host busy; the last command stays applied)')
-        reason = (f'telemetry waited unprocessed for {age:.3f} s (host_stall_limit '
-                  f'{limit:.3f} s): the loop is stalled')
+                                  f'{age:.3f} s (host busy{paused}; the last command stays '
+                                  'applied)')
+        reason = (f'telemetry waited unprocessed for {age:.3f} s, {stuck:.3f} s of it while '
+                  f'the rest of the driver ran (host_stall_limit {limit:.3f} s): the loop is '
+                  'stuck')
         disarmed = not self._stall_fault_reported
         if disarmed:
             self._stall_fault_reported = True
@@ -755,7 +779,8 @@ class GripperBridge:
                 ft_age_s=(t - ft[0].stamp, t - ft[1].stamp),
                 ft_biased=(ft[0].biased, ft[1].biased), host_stalls=self._host_stalls,
                 last_host_stall_s=self._last_host_stall_s,
-                max_host_stall_s=self._max_host_stall_s, catch_up_lines=self._catch_up_lines,
+                max_host_stall_s=self._max_host_stall_s,
+                max_watchdog_gap_s=self._max_watchdog_gap_s, catch_up_lines=self._catch_up_lines,
                 ft_host_lag_steps=self._ft_host_lag_steps,
                 resume_ramps=self._resume_ramps, contact_angle=self._contact_angle)
 

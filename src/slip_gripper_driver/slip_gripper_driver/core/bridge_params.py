@@ -45,8 +45,10 @@ class LinkParams:
         'description': 'no telemetry arrived for this long: link fault, disarm, reconnect'})
     host_stall_limit: float = field(default=1.0, metadata={
         'unit': 's', 'range': (0.02, 60.0),
-        'description': 'telemetry waited unprocessed at the port this long (the host loop is '
-                       'stalled): safe voltage, disarm'})
+        'description': 'telemetry waited unprocessed at the port this long while the watchdog '
+                       'kept running on time (the loop itself is stuck): safe voltage, disarm. '
+                       'A pause of the whole driver process is reported, not disarmed (the '
+                       'firmware kept the last command)'})
     resume_rate: float = field(default=200.0, metadata={
         'unit': 'N/s', 'range': (1.0, 1.0e4),
         'description': 'after the loop wrote nothing for stale_after (host stall, telemetry '

@@ -10,9 +10,9 @@ newest line steps and writes), which writes the command before ``on_result`` see
 
 Every event carries a message that states what the driver did (`EVENT_TEXT`): a stale link
 holds the last command or writes the safe voltage (``link.stale_action``) and stays armed,
-only a link fault (or a host stall beyond
-``link.host_stall_limit``) disarms, and a host stall with telemetry waiting changes nothing
-on the device.
+only a link fault (or a loop stuck beyond ``link.host_stall_limit`` while the rest of the
+driver runs) disarms, and a host stall with telemetry waiting (even a pause of the whole
+process) changes nothing on the device.
 """
 from __future__ import annotations
 
@@ -63,9 +63,9 @@ class GripperDriverCore:
         on_event: ``(t, kind, message)`` for logging/diagnostics; kinds: ``'connected'``,
             ``'lost'``, ``'error'``, ``'firmware_restart'``, ``'homing_done'``,
             ``'homing_failed'``, ``'stale'``, ``'fault'``, ``'host_stall'`` (after a stall,
-            nothing was done to the device), ``'host_stall_fault'`` (the stall outlasted
-            ``link.host_stall_limit``: safe voltage, disarmed). The message says what the
-            driver did.
+            nothing was done to the device), ``'host_stall_fault'`` (the loop stayed stuck for
+            ``link.host_stall_limit`` while the watchdog ran: safe voltage, disarmed). The
+            message says what the driver did.
         opener: Stream factory (tests inject fakes).
         read_timeout_s: Serial read timeout [s].
         thread_setup: Called first on the serial reader thread (`realtime.ThreadTuning.apply`).

@@ -65,6 +65,7 @@ import sys
 import threading
 import time
 import tty
+from array import array
 from collections import deque
 from dataclasses import asdict, dataclass
 from collections.abc import Callable, Sequence
@@ -415,8 +416,12 @@ class PtyFirmwareEmulator:
     """
 
     def __init__(self, emulator: FirmwareEmulator | None = None, *,
-                 link_path: str | None = None, realtime_scale: float = 1.0) -> None:
+                 link_path: str | None = None, realtime_scale: float = 1.0,
+                 on_tick: Callable[[float, float, float], None] | None = None) -> None:
         self.emulator = emulator if emulator is not None else FirmwareEmulator()
+        #: ``on_tick(monotonic_s, pad_force_n, voltage_v)`` after each tick, lock held: the
+        #: plant's truth for a benchmark (called from the emulator thread).
+        self.on_tick = on_tick
         self.link_path = link_path
         self.lock = threading.Lock()
         self.late_ticks = 0
@@ -562,6 +567,8 @@ class PtyFirmwareEmulator:
             with self.lock:
                 while next_tick <= now:
                     chunks.append(emulator.tick())
+                    if self.on_tick is not None:  # stamped with the tick's scheduled time
+                        self.on_tick(next_tick, emulator.grasp_force, emulator.target_voltage_v)
                     next_tick += emulator.last_period_s / scale
             self.late_ticks += len(chunks) - 1
             if last_send == last_send:  # not NaN
@@ -611,6 +618,10 @@ def _build_parser() -> argparse.ArgumentParser:
     parser.add_argument('--stats-json', action='store_true',
                         help='print counters as one JSON line at exit')
     parser.add_argument('--seed', type=int, default=0, help='random seed')
+    parser.add_argument('--record-truth', default=None, metavar='FILE',
+                        help='at exit, write (monotonic time [s], pad force [N], applied '
+                             'voltage [V]) of every tick to FILE as float64 triples: the '
+                             'plant\'s truth, for benchmarks')
     parser.add_argument('--priority', type=int, default=0,
                         help='SCHED_FIFO priority of the emulator threads (1-99), so that, like '
                              'real firmware, its 500 Hz timing does not depend on the host load; '
@@ -631,7 +642,13 @@ def main(argv: Sequence[str] | None = None) -> int:
                                object_width=args.object_width,
                                object_stiffness=args.object_stiffness,
                                boot_time=args.boot_time, period_jitter=args.period_jitter)
-    pty_emu = PtyFirmwareEmulator(FirmwareEmulator(model, seed=args.seed), link_path=args.link)
+    truth = array('d')
+
+    def record(t: float, force: float, voltage: float) -> None:
+        truth.extend((t, force, voltage))
+
+    pty_emu = PtyFirmwareEmulator(FirmwareEmulator(model, seed=args.seed), link_path=args.link,
+                                  on_tick=record if args.record_truth else None)
     port = pty_emu.start()
     netfts = []
     if args.netft:
@@ -670,6 +687,9 @@ def main(argv: Sequence[str] | None = None) -> int:
             emu.stop()
         for sig, handler in previous.items():
             signal.signal(sig, handler)
+    if args.record_truth:
+        with open(args.record_truth, 'wb') as out:
+            truth.tofile(out)
     if args.stats_json:
         e = pty_emu.emulator
         print(json.dumps({

@@ -36,8 +36,8 @@ class WatchdogResult(NamedTuple):
         age_s: Seconds since the last telemetry line (or since connection/activation).
         reconnect: True once per fault: the caller must drop and reopen the port.
         reason: Human-readable reason naming the condition.
-        disarmed: True once when this check disarmed the driver (link fault, or a host stall
-            beyond ``link.host_stall_limit``).
+        disarmed: True once when this check disarmed the driver (link fault, or a loop stuck
+            beyond ``link.host_stall_limit`` while the watchdog ran on time).
         held: Stale, and nothing was written: the firmware keeps applying the last command
             (``link.stale_action`` ``hold_last`` while armed and not homing).
     """
@@ -170,6 +170,9 @@ class BridgeDiagnostics:
     host_stalls: int = 0  #: times telemetry waited unprocessed longer than link.stale_after
     last_host_stall_s: float = 0.0  #: how late the loop was at the newest one [s]
     max_host_stall_s: float = 0.0  #: the longest one [s]
+    #: Longest interval between two watchdog checks [s]: how long the whole driver process
+    #: did not run (the watchdog timer fires every few ms).
+    max_watchdog_gap_s: float = 0.0
     catch_up_lines: int = 0  #: lines of a backlog that updated the state without a step
     #: control steps whose old F/T sample was the host's delay (records waiting unread)
     ft_host_lag_steps: int = 0
