@@ -346,6 +346,30 @@ def _steal_s() -> float:
         return 0.0
 
 
+_PAUSE_PROBE = '''
+import json, signal, sys, time
+worst, when, t0 = 0.0, 0.0, time.monotonic()
+def report(*_):
+    print(json.dumps({"longest_pause_s": worst, "at_s": when}), flush=True)
+    sys.exit(0)
+signal.signal(signal.SIGTERM, report)
+last = time.monotonic()
+while True:
+    time.sleep(0.001)
+    now = time.monotonic()
+    if now - last > worst:
+        worst, when = now - last, now - t0
+    last = now
+'''
+
+
+def _pause_probe() -> subprocess.Popen:
+    """A separate normal-priority process that sleeps 1 ms at a time and reports the longest
+    it went without running: a pause of the whole host, not only of the driver process."""
+    return subprocess.Popen([sys.executable, '-c', _PAUSE_PROBE], stdout=subprocess.PIPE,
+                            text=True)
+
+
 def _burn() -> subprocess.Popen:
     return subprocess.Popen([sys.executable, '-c', 'while True: pass'])
 
@@ -434,6 +458,8 @@ def run_hold(duration_s: float, target_n: float, rt_priority: int, burners: int,
         if not reply.success:
             raise RuntimeError(f'bias failed: {reply.message}')
         burning = [_burn() for _ in range(burners)]
+        probe = _pause_probe()
+        burning.append(probe)  # killed with the burners if anything below fails
         node.core.bridge.set_grasp_force(target_n, node.now())
         time.sleep(2.0)  # close and settle
         diag0 = node.core.bridge.diagnostics(node.now())
@@ -444,6 +470,10 @@ def run_hold(duration_s: float, target_n: float, rt_priority: int, burners: int,
         recording[0] = False
         cpu1, wall1 = time.process_time(), time.monotonic()
         steal1 = _steal_s()
+        probe.terminate()
+        probe_out, _ = probe.communicate(timeout=10.0)
+        host_pause = json.loads(probe_out.strip().splitlines()[-1]) if probe_out.strip() \
+            else {}
         diag = node.core.bridge.diagnostics(node.now())
         tuning = sorted(set(node._tuning.results.values()))
     finally:
@@ -479,6 +509,7 @@ def run_hold(duration_s: float, target_n: float, rt_priority: int, burners: int,
         'resume_ramps': diag.resume_ramps - diag0.resume_ramps,
         'max_watchdog_gap_ms': 1e3 * diag.max_watchdog_gap_s,
         'steal_s': steal1 - steal0,
+        'host_pause_ms': 1e3 * host_pause.get('longest_pause_s', math.nan),
         'err_max': float(np.max(np.abs(valid))) if valid.size else math.nan,
         'err_rms': float(np.sqrt(np.mean(valid ** 2))) if valid.size else math.nan,
         'within_1N': float(np.mean(np.abs(valid) <= 1.0)) if valid.size else math.nan,
@@ -503,7 +534,8 @@ def run_hold(duration_s: float, target_n: float, rt_priority: int, burners: int,
           f'{figures["catch_up_lines"]}, resume ramps {figures["resume_ramps"]})')
     print(f'  driver process paused      longest {figures["max_watchdog_gap_ms"]:6.0f} ms (the '
           f'watchdog did not run; whole run); CPU stolen by the hypervisor during the hold '
-          f'{figures["steal_s"]:.1f} s')
+          f'{figures["steal_s"]:.1f} s; a separate probe process went '
+          f'{figures["host_pause_ms"]:.0f} ms at most without running')
     print(f'  force error (F/T − target) max {figures["err_max"]:6.2f} N   RMS '
           f'{figures["err_rms"]:5.3f} N   within ±1 N {100 * figures["within_1N"]:5.1f} %   '
           f'(lines without a fresh F/T value: {figures["ft_missing"]})')
