@@ -554,7 +554,8 @@ def run_hold(duration_s: float, target_n: float, rt_priority: int, burners: int,
                            integral[:n], f)
     print(f'  emulator (the firmware)    {figures["emu_long_gaps"]:10d}   sends > 20 ms after '
           f'the previous one (real link gaps, whole run; longest '
-          f'{figures["emu_max_gap_ms"]:.1f} ms); late ticks {figures["emu_late_ticks"]}')
+          f'{figures["emu_max_gap_ms"]:.1f} ms); late ticks {figures["emu_late_ticks"]}, '
+          f'writes the pty refused {emu.get("dropped_writes", "?")}')
     print(f'  driver CPU {figures["cpu"]:5.1f} % of one core; malformed commands at the '
           f'firmware {figures["malformed"]}', flush=True)
     for kind, message in events[:8]:
