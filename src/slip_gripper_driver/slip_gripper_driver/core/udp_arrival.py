@@ -7,9 +7,12 @@ tens of milliseconds. With ``SO_TIMESTAMPNS`` the kernel records each datagram's
 `receive` returns the datagram with its age at the moment it was read, so the reader can stamp
 it ``clock() − age`` on whatever clock it uses (the node clock, sim time, a test clock).
 
-The kernel stamp is on ``CLOCK_REALTIME``; only a difference of two readings of that clock is
-used (an age), never a time of day. An age that is negative or longer than `MAX_AGE_S` (the
-wall clock was stepped between arrival and read) counts as unknown.
+The kernel switches arrival stamping on for the host with a deferred work item, so the first
+datagrams after the first `enable` on a host may carry the read time instead (an age near 0:
+the old behaviour, never an age too large). The kernel stamp is on ``CLOCK_REALTIME``; only
+a difference of two readings of that clock is used (an age), never a time of day. An age that
+is negative or longer than `MAX_AGE_S` (the wall clock was stepped between arrival and read)
+counts as unknown.
 
 Python's `socket` module does not name ``SO_TIMESTAMPNS``; its value is the Linux generic one
 (also ``SCM_TIMESTAMPNS``), used only on the architectures that share it. Elsewhere, or when
