@@ -174,6 +174,7 @@ class NetFTClient:
         self._want_arrival_stamps = arrival_stamps
         self._arrival_stamps = False
         self._longest_wait_s = 0.0
+        self._last_arrival = -math.inf
         self._thread_setup = thread_setup
         self.port = port
         self.scale = scale
@@ -432,13 +433,17 @@ class NetFTClient:
                     self._socket_errors += 1
                     self._last_error = f'receive from {self.name} failed: {exc}'
                 return
-            now = self._clock()
-            if waited is None:
-                self._handle(data, now)
-                continue
-            if waited > self._longest_wait_s:
-                self._longest_wait_s = waited
-            self._handle(data, now - waited)
+            stamp = self._clock()
+            if waited is not None:
+                if waited > self._longest_wait_s:
+                    self._longest_wait_s = waited
+                stamp -= waited
+            # Never before the previous datagram: read-time stamps (before the kernel's stamping
+            # is on) and arrival stamps must not interleave backwards.
+            if stamp < self._last_arrival:
+                stamp = self._last_arrival
+            self._last_arrival = stamp
+            self._handle(data, stamp)
 
     def _handle(self, data: bytes, stamp: float) -> None:
         samples: list[FtSample] = []
