@@ -74,7 +74,7 @@ from slip_control.core.contact_estimator import EstimationPhase
 from slip_control.core.controllers import SlipMode, SlipResult
 from slip_control.core.mode_switch import ModeRequest
 from slip_control.core.params import ExperimentRunnerParams
-from slip_control.core.runner_cell import CallResult, CallReturn
+from slip_control.core.runner_cell import CallResult, CallReturn, describe_read
 from slip_control.core.runner_sequences import RECORDING_MODES, build_sequence
 from slip_control.core.runner_steps import FLAG_NAMES, Sequence
 from slip_control.core.sequence_runner import (CellFlags, PoseOffset, RunnerProgress,
@@ -251,7 +251,7 @@ class RosCell:
                 props = properties_from_msg(r.properties)
             except ValueError as exc:
                 return CallResult(False, f'{names.CONTACT_GET_PROPERTIES_SRV}: {exc}')
-            return CallResult(True, props.describe(), value=props)
+            return CallResult(True, describe_read(props, str(r.message)), value=props)
         return ServiceCall(self._get, GetContactProperties.Request(), convert)
 
     def bias_ft(self, t: float) -> CallReturn:

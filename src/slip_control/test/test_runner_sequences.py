@@ -15,7 +15,7 @@ from slip_control.core.contact_estimator import EstimationPhase
 from slip_control.core.mode_switch import ModeRequest
 from slip_control.core.params import ExperimentRunnerParams
 from slip_cell_common.core.force_profile import ForceTrackingProfile
-from slip_control.core.runner_cell import CallResult
+from slip_control.core.runner_cell import CallResult, describe_read
 from slip_control.core.runner_sequences import RUNNER_MODES, build_sequence
 from slip_control.core.runner_steps import Action
 from slip_control.core.sequence_runner import CellFlags, PoseOffset, SequenceRunner
@@ -44,6 +44,8 @@ class FakeCell:
         source=ContactSource.ESTIMATED))
     reject_modes: tuple[int, ...] = ()
     never_answer: str = ''
+    #: The estimator's last report, as ``contact/get_properties`` returns it.
+    estimator_message: str = ''
     #: Outcome of a slip trajectory per mode (default: "done" at the target after its
     #: duration).
     slip_outcomes: dict[int, str] = field(default_factory=dict)
@@ -85,7 +87,8 @@ class FakeCell:
 
     def read_properties(self, t: float) -> CallResult:
         self._rec(t, 'read')
-        return CallResult(True, value=self.props)
+        return CallResult(True, describe_read(self.props, self.estimator_message),
+                          value=self.props)
 
     def bias_ft(self, t: float) -> CallResult:
         self._rec(t, 'bias')
@@ -173,8 +176,11 @@ def test_est_contact_follows_the_exploration_procedure() -> None:
 def test_est_contact_reports_invalid_estimate_and_still_cleans_up() -> None:
     cell = FakeCell()           # ESTIMATED but no valid flags
     seq = build_sequence('est_contact', P, recording_name='abc')
+    cell.estimator_message = 'ROTATIONAL estimation failed; finger 1: too few samples: 4 < 20'
     prog = _run(SequenceRunner(seq, cell, P, flags=CellFlags(at_pickup=True)), cell)
     assert not prog.success and 'contact estimate valid' in prog.message
+    # The failure says why the estimate is invalid: the estimator's report of this run.
+    assert 'finger 1: too few samples: 4 < 20' in prog.message, prog.message
     assert not cell.recording and cell.names()[-1] == 'stop_record'
     # It released and returned to the pick-up pose before the check.
     assert -8.0 in [c[2] for c in cell.calls if c[1] == 'force']

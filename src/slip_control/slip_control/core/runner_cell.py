@@ -29,8 +29,17 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, Protocol, runtime_checkable
 
+from slip_control.core.contact import ContactProperties
 from slip_control.core.contact_estimator import EstimationPhase
 from slip_control.core.mode_switch import ModeRequest
+
+
+def describe_read(props: ContactProperties, estimator_message: str) -> str:
+    """The message of a ``read_properties`` result: the properties, and for an invalid set
+    the estimator's last report (which names the phase and the finger that failed, and why)."""
+    if props.valid or not estimator_message:
+        return props.describe()
+    return f'{props.describe()} (estimator: {estimator_message})'
 
 
 @dataclass(frozen=True, slots=True)

@@ -168,6 +168,7 @@ class SequenceRunner:
         self._failure = ''
         self._finished = False
         self._estimate: ContactProperties | None = None
+        self._estimate_note = ''
         self._bag = ''
         self._last_t = 0.0
         self._segments: list[str] = []
@@ -340,6 +341,9 @@ class SequenceRunner:
             return c.stop_recording(t)
         if act == Action.REQUIRE:
             refusal = precondition_refusal(self.flags, a['flags'])
+            if refusal and self._estimate_note and a['flags'].get('contact_estimated') \
+                    and not self.flags.contact_estimated:
+                refusal += f'; the estimate read in this run: {self._estimate_note}'
             return CallResult(False, refusal) if refusal else CallResult(True)
         raise ValueError(f'unknown action {act!r}')
 
@@ -361,6 +365,7 @@ class SequenceRunner:
             self.offset = PoseOffset()
         elif step.action == Action.READ_PROPERTIES and isinstance(res.value, ContactProperties):
             self._estimate = res.value
+            self._estimate_note = '' if res.value.valid else res.message
             self.flags = replace(self.flags, contact_estimated=res.value.valid)
         elif step.action == Action.START_RECORDING and isinstance(res.value, str):
             self._bag = res.value

@@ -22,7 +22,7 @@ from slip_bringup.core.evaluation.settings import EvaluationError
 from slip_control.core.contact_estimator import EstimationPhase
 from slip_control.core.mode_switch import ModeRequest
 from slip_control.core.params import ExperimentRunnerParams
-from slip_control.core.runner_cell import CallResult, CallReturn
+from slip_control.core.runner_cell import CallResult, CallReturn, describe_read
 from slip_control.core.runner_sequences import build_sequence
 from slip_control.core.sequence_runner import (CellFlags, PoseOffset, RunnerProgress,
                                                SequenceRunner)
@@ -139,8 +139,8 @@ class SimRunnerCell:
 
     def read_properties(self, t: float) -> CallReturn:
         """``contact/get_properties``."""
-        props = self.estimator.estimator.properties
-        return CallResult(True, props.describe(), value=props)
+        props, _, message = self.estimator.estimator.get_properties()
+        return CallResult(True, describe_read(props, message), value=props)
 
     def bias_ft(self, t: float) -> CallReturn:
         """``gripper/bias_ft``: done when the bias window has closed."""
