@@ -556,6 +556,7 @@ def run_hold(duration_s: float, target_n: float, rt_priority: int, burners: int,
           f'the previous one (real link gaps, whole run; longest '
           f'{figures["emu_max_gap_ms"]:.1f} ms); late ticks {figures["emu_late_ticks"]}, '
           f'writes the pty refused {emu.get("dropped_writes", "?")}')
+    _print_emulator_gaps(emu.get('gap_log', []), wall0)
     print(f'  driver CPU {figures["cpu"]:5.1f} % of one core; malformed commands at the '
           f'firmware {figures["malformed"]}', flush=True)
     for kind, message in events[:8]:
@@ -563,6 +564,22 @@ def run_hold(duration_s: float, target_n: float, rt_priority: int, burners: int,
     if len(events) > 8:
         print(f'    ... {len(events) - 8} more events')
     return figures
+
+
+def _print_emulator_gaps(gaps: list[dict[str, float]], wall0: float) -> None:
+    """The emulator's longest link gaps and where its thread spent them (CPU time used,
+    preemptions, late wake-up, time in read/tick/write); ``wall0`` = hold start, monotonic
+    [s] (the emulator's clock is the same system-wide one)."""
+    if not gaps:
+        return
+    print('    longest emulator gaps (s into the hold (negative: before it); ms: gap, thread CPU '
+          'meanwhile; preemptions/blocks; ms: select overslept, read, tick, write):')
+    for g in gaps[:5]:
+        print(f'      {g["at_s"] - wall0:8.1f} s  {1e3 * g["gap_s"]:7.1f}  cpu '
+              f'{1e3 * g["cpu_s"]:6.1f}  switches {g["involuntary_switches"]:3d}/'
+              f'{g["voluntary_switches"]:<4d}  overslept {1e3 * g["overslept_s"]:7.1f}  read '
+              f'{1e3 * g["read_s"]:6.1f}  tick {1e3 * g["tick_s"]:6.1f}  write '
+              f'{1e3 * g["write_s"]:6.1f}')
 
 
 def _print_worst_truth(truth: np.ndarray, target_n: float, line_t: np.ndarray,

@@ -338,3 +338,24 @@ def test_a_real_boot_silence_faults_reconnects_then_counts_the_firmware_restart(
     assert status.motor_angle != 0.0  # the alignment moved the rotor off the count origin
     with emu.lock:
         assert emu.emulator.malformed_commands == 0 and emu.emulator.nonfinite_commands == 0
+
+
+def test_a_link_gap_is_logged_with_where_the_emulator_thread_was(tmp_path: Path) -> None:
+    """A gap in the emulator's sends names its cause: here the thread waited (for the GIL,
+    which one long C call in this process holds) instead of computing."""
+    import random
+    values = [random.random() for _ in range(3_000_000)]
+    emu = PtyFirmwareEmulator(FirmwareEmulator(), link_path=str(tmp_path / 'gripper'))
+    emu.start()
+    try:
+        time.sleep(0.2)
+        values.sort()                       # one C call: the GIL is not released meanwhile
+        time.sleep(0.2)
+    finally:
+        emu.stop()
+    assert emu.long_gaps >= 1 and emu.gap_log, (emu.long_gaps, emu.max_send_gap_s)
+    gap = emu.gap_log[0]
+    assert gap.gap_s == pytest.approx(emu.max_send_gap_s)
+    assert gap.cpu_s < 0.5 * gap.gap_s, gap          # not computing: waiting
+    assert gap.overslept_s > 0.5 * gap.gap_s, gap    # the wait ended the select late
+    assert gap.voluntary_switches >= 1, gap

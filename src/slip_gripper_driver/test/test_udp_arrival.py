@@ -23,24 +23,28 @@ def pair() -> Iterator[tuple[socket.socket, socket.socket]]:
     sender.close()
 
 
-def _until_the_kernel_stamps(receiver: socket.socket, sender: socket.socket) -> None:
-    """The kernel turns arrival stamping on for the host with a deferred work item: until it
-    has, datagrams carry the read time. Wait (at most 5 s) for one that shows its wait."""
+@pytest.fixture
+def stamped_pair(pair) -> tuple[socket.socket, socket.socket]:
+    """`pair` with arrival stamps on and already in effect.
+
+    The kernel turns arrival stamping on for the host with a deferred work item: until it has,
+    datagrams carry the read time. Wait (at most 5 s) for one that shows its wait."""
+    if not udp_arrival.supported():
+        pytest.skip('no kernel arrival stamps here')
+    receiver, sender = pair
+    assert udp_arrival.enable(receiver)
     deadline = time.monotonic() + 5.0
     while time.monotonic() < deadline:
         sender.send(b'warm-up')
         time.sleep(0.02)
         _, age = udp_arrival.receive(receiver, 1024, time.time)
         if age is not None and age >= 0.015:
-            return
+            return pair
     pytest.fail('the kernel never stamped a datagram with its arrival time')
 
 
-@pytest.mark.skipif(not udp_arrival.supported(), reason='no kernel arrival stamps here')
-def test_a_datagram_read_late_reports_how_long_it_waited(pair) -> None:
-    receiver, sender = pair
-    assert udp_arrival.enable(receiver)
-    _until_the_kernel_stamps(receiver, sender)
+def test_a_datagram_read_late_reports_how_long_it_waited(stamped_pair) -> None:
+    receiver, sender = stamped_pair
     sender.send(b'first')
     time.sleep(0.060)
     sender.send(b'second')
@@ -52,11 +56,8 @@ def test_a_datagram_read_late_reports_how_long_it_waited(pair) -> None:
     assert 0.0 <= second_age < first_age - 0.050
 
 
-@pytest.mark.skipif(not udp_arrival.supported(), reason='no kernel arrival stamps here')
-def test_a_stepped_wall_clock_makes_the_age_unknown_not_negative(pair) -> None:
-    receiver, sender = pair
-    assert udp_arrival.enable(receiver)
-    _until_the_kernel_stamps(receiver, sender)
+def test_a_stepped_wall_clock_makes_the_age_unknown_not_negative(stamped_pair) -> None:
+    receiver, sender = stamped_pair
     sender.send(b'x')
     time.sleep(0.005)
     _, age = udp_arrival.receive(receiver, 1024, lambda: time.time() - 3600.0)

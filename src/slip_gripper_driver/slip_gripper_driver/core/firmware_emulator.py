@@ -59,6 +59,7 @@ import json
 import math
 import os
 import re
+import resource
 import select
 import signal
 import sys
@@ -80,6 +81,9 @@ BOOT_LINE = 'Voltage control'
 
 #: Reply of the firmware's command reader to ``FIRMWARE_BUFFER_CHARS`` characters.
 TOO_LONG_REPLY = 'Too long'
+
+#: ``getrusage`` target of the calling thread (Linux); elsewhere the whole process.
+RUSAGE_THREAD = getattr(resource, 'RUSAGE_THREAD', resource.RUSAGE_SELF)
 
 #: Host bytes kept while the firmware boots (USB CDC receive buffer; excess dropped).
 RX_BUFFER_BYTES = 256
@@ -405,6 +409,70 @@ class EmulatedFirmwareStream:
         self.closed = True
 
 
+#: Link gaps kept in `PtyFirmwareEmulator.gap_log` (the longest ones).
+GAP_LOG_LENGTH = 20
+
+
+@dataclass(frozen=True, slots=True)
+class SendGap:
+    """One link gap of the emulator thread: the wall-clock interval between two sends, and
+    where it went.
+
+    Attributes:
+        at_s: ``time.monotonic()`` at the end of the gap [s].
+        gap_s: Interval since the previous send [s].
+        cpu_s: CPU time the thread used meanwhile [s] (``time.thread_time``): close to
+            ``gap_s`` = the thread was computing; close to 0 = it was not running.
+        involuntary_switches: The thread was preempted this many times meanwhile.
+        voluntary_switches: It blocked this many times (``select``, the GIL, a lock).
+        overslept_s: How much longer ``select`` took than its timeout [s] (a late wake-up).
+        read_s, tick_s, write_s: Time in reading + parsing host bytes, in the plant ticks
+            (lock included) and in the pty write [s].
+    """
+
+    at_s: float
+    gap_s: float
+    cpu_s: float
+    involuntary_switches: int
+    voluntary_switches: int
+    overslept_s: float
+    read_s: float
+    tick_s: float
+    write_s: float
+
+
+class _GapClock:
+    """Where the emulator thread's time went since its last send (`SendGap` fields)."""
+
+    def __init__(self) -> None:
+        self.restart()
+
+    def restart(self) -> None:
+        self._parts = {'select': 0.0, 'read': 0.0, 'tick': 0.0, 'write': 0.0}
+        self._cpu0 = time.thread_time()
+        self._switches0 = _context_switches()
+
+    def add(self, part: str, seconds: float) -> None:
+        self._parts[part] += max(0.0, seconds)
+
+    def gap(self, now: float, gap_s: float) -> SendGap:
+        p = self._parts
+        involuntary, voluntary = _context_switches()
+        return SendGap(now, gap_s, time.thread_time() - self._cpu0,
+                       involuntary - self._switches0[0], voluntary - self._switches0[1],
+                       p['select'], p['read'], p['tick'], p['write'])
+
+
+def _context_switches() -> tuple[int, int]:
+    """``(involuntary, voluntary)`` context switches of the calling thread so far (zeros
+    where not available)."""
+    try:
+        usage = resource.getrusage(RUSAGE_THREAD)
+    except (OSError, ValueError):
+        return 0, 0
+    return int(usage.ru_nivcsw), int(usage.ru_nvcsw)
+
+
 class PtyFirmwareEmulator:
     """The emulator behind a pseudo-terminal, in real time (the device side of a fake port).
 
@@ -427,6 +495,9 @@ class PtyFirmwareEmulator:
         self.late_ticks = 0
         self.max_send_gap_s = 0.0  #: longest wall-clock interval between two sends [s]
         self.long_gaps = 0  #: sends more than 10 periods after the previous one (link gaps)
+        #: The longest link gaps (up to `GAP_LOG_LENGTH`), each a `SendGap`: where the thread
+        #: spent the gap, so a benchmark can tell a descheduled emulator from a slow one.
+        self.gap_log: list[SendGap] = []
         self.dropped_writes = 0
         self.vanished = 0
         self._scale = realtime_scale
@@ -544,12 +615,16 @@ class PtyFirmwareEmulator:
         next_tick = time.monotonic() + emulator.params.period / scale
         last_send = math.nan
         master, wake = self._master, self._wake_r
+        since_send = _GapClock()
         while self._running:
             timeout = max(0.0, next_tick - time.monotonic())
+            t_wait = time.monotonic()
             ready, _, _ = select.select([master, wake], [], [], timeout)
+            since_send.add('select', time.monotonic() - t_wait - timeout)
             if wake in ready:
                 break
             if master in ready:
+                t_read = time.monotonic()
                 try:
                     data = os.read(master, 4096)
                 except BlockingIOError:
@@ -559,25 +634,37 @@ class PtyFirmwareEmulator:
                 if data:
                     with self.lock:
                         emulator.receive(data)
+                since_send.add('read', time.monotonic() - t_read)
             now = time.monotonic()
             if now < next_tick:
                 continue
             # Every period that has ended produces its line (each period with its own jitter).
             chunks = []
+            t_tick = now
             with self.lock:
                 while next_tick <= now:
                     chunks.append(emulator.tick())
                     if self.on_tick is not None:  # stamped with the tick's scheduled time
                         self.on_tick(next_tick, emulator.grasp_force, emulator.target_voltage_v)
                     next_tick += emulator.last_period_s / scale
+            since_send.add('tick', time.monotonic() - t_tick)
             self.late_ticks += len(chunks) - 1
             if last_send == last_send:  # not NaN
                 gap = now - last_send
                 self.max_send_gap_s = max(self.max_send_gap_s, gap)
                 if gap > 10.0 * emulator.params.period / scale:
                     self.long_gaps += 1
+                    self._log_gap(since_send.gap(now, gap))
             last_send = now
+            t_write = time.monotonic()
             self._send(master, b''.join(chunks))
+            since_send.add('write', time.monotonic() - t_write)
+            since_send.restart()
+
+    def _log_gap(self, gap: SendGap) -> None:
+        self.gap_log.append(gap)
+        self.gap_log.sort(key=lambda g: -g.gap_s)
+        del self.gap_log[GAP_LOG_LENGTH:]
 
     def _send(self, master: int, data: bytes) -> None:
         try:
@@ -698,6 +785,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             'max_send_gap_s': pty_emu.max_send_gap_s, 'long_gaps': pty_emu.long_gaps,
             'too_long_replies': e.too_long_replies, 'nonfinite_commands': e.nonfinite_commands,
             'malformed_commands': e.malformed_commands, 'stale_reruns': e.stale_reruns,
+            'gap_log': [asdict(g) for g in pty_emu.gap_log],
             'last_voltage_v': e.target_voltage_v, 'model': asdict(model)}), flush=True)
     return 0
 
