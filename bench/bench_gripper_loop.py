@@ -346,6 +346,26 @@ def _steal_s() -> float:
         return 0.0
 
 
+def _io_stall_counters() -> tuple[float, int]:
+    """``(s, n)``: time some task stalled on I/O since boot (``/proc/pressure/io``, NaN where
+    there is no pressure information) and major page faults since boot (-1 where unknown)."""
+    stall, faults = math.nan, -1
+    try:
+        with open('/proc/pressure/io') as pressure:
+            some = pressure.readline().split()
+        stall = int(some[-1].split('=')[1]) * 1e-6
+    except (OSError, IndexError, ValueError):
+        pass
+    try:
+        with open('/proc/vmstat') as vmstat:
+            for line in vmstat:
+                if line.startswith('pgmajfault '):
+                    faults = int(line.split()[1])
+    except (OSError, ValueError):
+        pass
+    return stall, faults
+
+
 _PAUSE_PROBE = '''
 import json, signal, sys, time
 worst, when, t0 = 0.0, 0.0, time.monotonic()
@@ -465,11 +485,13 @@ def run_hold(duration_s: float, target_n: float, rt_priority: int, burners: int,
         diag0 = node.core.bridge.diagnostics(node.now())
         recording[0] = True
         steal0 = _steal_s()
+        io0 = _io_stall_counters()
         cpu0, wall0 = time.process_time(), time.monotonic()
         time.sleep(duration_s)
         recording[0] = False
         cpu1, wall1 = time.process_time(), time.monotonic()
         steal1 = _steal_s()
+        io1 = _io_stall_counters()
         probe.terminate()
         probe_out, _ = probe.communicate(timeout=10.0)
         host_pause = json.loads(probe_out.strip().splitlines()[-1]) if probe_out.strip() \
@@ -509,6 +531,8 @@ def run_hold(duration_s: float, target_n: float, rt_priority: int, burners: int,
         'resume_ramps': diag.resume_ramps - diag0.resume_ramps,
         'max_watchdog_gap_ms': 1e3 * diag.max_watchdog_gap_s,
         'steal_s': steal1 - steal0,
+        'io_stall_s': io1[0] - io0[0],
+        'major_faults': io1[1] - io0[1] if min(io0[1], io1[1]) >= 0 else -1,
         'host_pause_ms': 1e3 * host_pause.get('longest_pause_s', math.nan),
         'err_max': float(np.max(np.abs(valid))) if valid.size else math.nan,
         'err_rms': float(np.sqrt(np.mean(valid ** 2))) if valid.size else math.nan,
@@ -536,6 +560,9 @@ def run_hold(duration_s: float, target_n: float, rt_priority: int, burners: int,
           f'watchdog did not run; whole run); CPU stolen by the hypervisor during the hold '
           f'{figures["steal_s"]:.1f} s; a separate probe process went '
           f'{figures["host_pause_ms"]:.0f} ms at most without running')
+    print(f'  host I/O during the hold       some task stalled on I/O for '
+          f'{figures["io_stall_s"]:.1f} s; {figures["major_faults"]} major page faults '
+          f'(pages read back from storage)')
     print(f'  force error (F/T − target) max {figures["err_max"]:6.2f} N   RMS '
           f'{figures["err_rms"]:5.3f} N   within ±1 N {100 * figures["within_1N"]:5.1f} %   '
           f'(lines without a fresh F/T value: {figures["ft_missing"]})')
@@ -573,11 +600,14 @@ def _print_emulator_gaps(gaps: list[dict[str, float]], wall0: float) -> None:
     if not gaps:
         return
     print('    longest emulator gaps (s into the hold (negative: before it); ms: gap, thread CPU '
-          'meanwhile; preemptions/blocks; ms: select overslept, read, tick, write):')
+          'meanwhile; preemptions/blocks; ms waiting for a CPU (nan: sysctl '
+          'kernel.task_delayacct=0); major page faults; ms: sleep overslept, read, tick, '
+          'write):')
     for g in gaps[:5]:
         print(f'      {g["at_s"] - wall0:8.1f} s  {1e3 * g["gap_s"]:7.1f}  cpu '
               f'{1e3 * g["cpu_s"]:6.1f}  switches {g["involuntary_switches"]:3d}/'
-              f'{g["voluntary_switches"]:<4d}  overslept {1e3 * g["overslept_s"]:7.1f}  read '
+              f'{g["voluntary_switches"]:<4d}  runq {1e3 * g["runqueue_wait_s"]:7.1f}  '
+              f'majflt {g["major_faults"]:3d}  overslept {1e3 * g["overslept_s"]:7.1f}  read '
               f'{1e3 * g["read_s"]:6.1f}  tick {1e3 * g["tick_s"]:6.1f}  write '
               f'{1e3 * g["write_s"]:6.1f}')
 

@@ -55,14 +55,15 @@ without hardware.
 from __future__ import annotations
 
 import argparse
+import fcntl
 import json
 import math
 import os
 import re
 import resource
-import select
 import signal
 import sys
+import termios
 import threading
 import time
 import tty
@@ -424,8 +425,13 @@ class SendGap:
         cpu_s: CPU time the thread used meanwhile [s] (``time.thread_time``): close to
             ``gap_s`` = the thread was computing; close to 0 = it was not running.
         involuntary_switches: The thread was preempted this many times meanwhile.
-        voluntary_switches: It blocked this many times (``select``, the GIL, a lock).
-        overslept_s: How much longer ``select`` took than its timeout [s] (a late wake-up).
+        voluntary_switches: It blocked this many times (its sleep, the GIL, a lock, I/O).
+        runqueue_wait_s: Time it was ready to run but waited for a CPU [s] (Linux
+            ``schedstat``, with ``kernel.task_delayacct = 1``; NaN otherwise).
+        major_faults: Page faults that had to read from storage meanwhile (Linux; -1
+            elsewhere).
+        overslept_s: How much longer the sleeps until a tick took than asked [s] (late
+            wake-ups).
         read_s, tick_s, write_s: Time in reading + parsing host bytes, in the plant ticks
             (lock included) and in the pty write [s].
     """
@@ -435,6 +441,8 @@ class SendGap:
     cpu_s: float
     involuntary_switches: int
     voluntary_switches: int
+    runqueue_wait_s: float
+    major_faults: int
     overslept_s: float
     read_s: float
     tick_s: float
@@ -442,15 +450,18 @@ class SendGap:
 
 
 class _GapClock:
-    """Where the emulator thread's time went since its last send (`SendGap` fields)."""
+    """Where the emulator thread's time went since its last send (`SendGap` fields); create
+    it in the thread it measures."""
 
     def __init__(self) -> None:
+        self._task = _TaskCounters()
         self.restart()
 
     def restart(self) -> None:
-        self._parts = {'select': 0.0, 'read': 0.0, 'tick': 0.0, 'write': 0.0}
+        self._parts = {'sleep': 0.0, 'read': 0.0, 'tick': 0.0, 'write': 0.0}
         self._cpu0 = time.thread_time()
         self._switches0 = _context_switches()
+        self._wait0, self._faults0 = self._task.read()
 
     def add(self, part: str, seconds: float) -> None:
         self._parts[part] += max(0.0, seconds)
@@ -458,9 +469,46 @@ class _GapClock:
     def gap(self, now: float, gap_s: float) -> SendGap:
         p = self._parts
         involuntary, voluntary = _context_switches()
+        wait, faults = self._task.read()
         return SendGap(now, gap_s, time.thread_time() - self._cpu0,
                        involuntary - self._switches0[0], voluntary - self._switches0[1],
-                       p['select'], p['read'], p['tick'], p['write'])
+                       wait - self._wait0, faults - self._faults0 if faults >= 0 else -1,
+                       p['sleep'], p['read'], p['tick'], p['write'])
+
+    def close(self) -> None:
+        self._task.close()
+
+
+class _TaskCounters:
+    """The calling thread's run-queue wait [s] and major page faults, from
+    ``/proc/thread-self`` (opened once; NaN and -1 where there is no such file)."""
+
+    def __init__(self) -> None:
+        self._fds: list[int] = []
+        for name in ('schedstat', 'stat'):
+            try:
+                self._fds.append(os.open(f'/proc/thread-self/{name}', os.O_RDONLY))
+            except OSError:
+                self.close()
+                return
+
+    def read(self) -> tuple[float, int]:
+        if not self._fds:
+            return math.nan, -1
+        try:
+            schedstat = os.pread(self._fds[0], 128, 0).split()
+            stat = os.pread(self._fds[1], 1024, 0).rsplit(b')', 1)[1].split()
+            # Both schedstat figures stay 0 while the kernel keeps no per-task delay
+            # accounting (sysctl kernel.task_delayacct = 0): then the wait is unknown.
+            wait = int(schedstat[1]) * 1e-9 if int(schedstat[0]) > 0 else math.nan
+            return wait, int(stat[9])
+        except (OSError, IndexError, ValueError):
+            return math.nan, -1
+
+    def close(self) -> None:
+        for fd in self._fds:
+            os.close(fd)
+        self._fds = []
 
 
 def _context_switches() -> tuple[int, int]:
@@ -471,6 +519,33 @@ def _context_switches() -> tuple[int, int]:
     except (OSError, ValueError):
         return 0, 0
     return int(usage.ru_nivcsw), int(usage.ru_nvcsw)
+
+
+def _drain(master: int) -> bytes:
+    """What the host has written that the pty already holds for the master (non-blocking).
+
+    Reads only what ``FIONREAD`` reports: a read or poll of a pty end with nothing in it
+    first waits for the kernel's worker thread to move pending bytes over
+    (``tty_buffer_flush_work``), and that normal-priority thread can wait for a CPU for
+    seconds on a loaded host. Bytes still pending there are read at a later tick.
+    """
+    parts = []
+    count = array('i', [0])
+    while True:
+        try:
+            fcntl.ioctl(master, termios.FIONREAD, count, True)
+        except OSError:  # the pty is gone
+            break
+        if count[0] <= 0:
+            break
+        try:
+            data = os.read(master, count[0])
+        except (BlockingIOError, OSError):  # EIO: the slave is not open
+            break
+        if not data:
+            break
+        parts.append(data)
+    return b''.join(parts)
 
 
 class PtyFirmwareEmulator:
@@ -506,7 +581,6 @@ class PtyFirmwareEmulator:
         self._slave_name = ''
         self._thread: threading.Thread | None = None
         self._running = False
-        self._wake_r, self._wake_w = -1, -1
 
     @property
     def port(self) -> str:
@@ -517,7 +591,6 @@ class PtyFirmwareEmulator:
         """Create the pty and start the 500 Hz thread; returns `port`."""
         self._open_pty()
         self._running = True
-        self._wake_r, self._wake_w = os.pipe()
         self._thread = threading.Thread(target=self._run, name='firmware-emulator',
                                         daemon=True)
         self._thread.start()
@@ -598,56 +671,48 @@ class PtyFirmwareEmulator:
         self._master = self._slave = -1
 
     def _stop_thread(self) -> None:
-        self._running = False
-        if self._wake_w >= 0:
-            os.write(self._wake_w, b'x')
+        self._running = False  # the thread sees it within one period
         if self._thread is not None:
             self._thread.join(2.0)
         self._thread = None
-        for fd in (self._wake_r, self._wake_w):
-            if fd >= 0:
-                os.close(fd)
-        self._wake_r = self._wake_w = -1
 
     def _run(self) -> None:
+        # The thread sleeps on the clock until each tick and then takes what the port holds
+        # (`_drain`): a microcontroller's loop never waits for the host. Waiting in select()
+        # on the pty master instead stalled this thread for 0.03-2.5 s at a time beside CPU
+        # burners (the poll waits for the kernel's tty worker, see `_drain`).
         emulator = self.emulator
         scale = self._scale
         next_tick = time.monotonic() + emulator.params.period / scale
         last_send = math.nan
-        master, wake = self._master, self._wake_r
+        master = self._master
         since_send = _GapClock()
         while self._running:
-            timeout = max(0.0, next_tick - time.monotonic())
             t_wait = time.monotonic()
-            ready, _, _ = select.select([master, wake], [], [], timeout)
-            since_send.add('select', time.monotonic() - t_wait - timeout)
-            if wake in ready:
+            delay = next_tick - t_wait
+            if delay > 0.0:
+                time.sleep(delay)
+                since_send.add('sleep', time.monotonic() - t_wait - delay)
+            if not self._running:
                 break
-            if master in ready:
-                t_read = time.monotonic()
-                try:
-                    data = os.read(master, 4096)
-                except BlockingIOError:
-                    data = b''
-                except OSError:  # EIO: no process has the slave open; nothing to read
-                    data = b''
-                if data:
-                    with self.lock:
-                        emulator.receive(data)
-                since_send.add('read', time.monotonic() - t_read)
+            t_read = time.monotonic()
+            data = _drain(master)
+            if data:
+                with self.lock:
+                    emulator.receive(data)
             now = time.monotonic()
-            if now < next_tick:
-                continue
+            since_send.add('read', now - t_read)
             # Every period that has ended produces its line (each period with its own jitter).
             chunks = []
-            t_tick = now
             with self.lock:
                 while next_tick <= now:
                     chunks.append(emulator.tick())
                     if self.on_tick is not None:  # stamped with the tick's scheduled time
                         self.on_tick(next_tick, emulator.grasp_force, emulator.target_voltage_v)
                     next_tick += emulator.last_period_s / scale
-            since_send.add('tick', time.monotonic() - t_tick)
+            since_send.add('tick', time.monotonic() - now)
+            if not chunks:
+                continue
             self.late_ticks += len(chunks) - 1
             if last_send == last_send:  # not NaN
                 gap = now - last_send
@@ -660,6 +725,7 @@ class PtyFirmwareEmulator:
             self._send(master, b''.join(chunks))
             since_send.add('write', time.monotonic() - t_write)
             since_send.restart()
+        since_send.close()
 
     def _log_gap(self, gap: SendGap) -> None:
         self.gap_log.append(gap)
