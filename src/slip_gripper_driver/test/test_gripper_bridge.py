@@ -585,6 +585,63 @@ def test_a_pause_of_the_whole_driver_process_is_reported_and_does_not_disarm() -
     assert any(r.disarmed for r in stuck) and not rig.bridge.status(rig.t).armed
 
 
+def test_telemetry_the_kernel_still_holds_is_a_host_stall_not_a_link_fault() -> None:
+    """The reader waits for the kernel's tty worker (seen beside CPU burners: up to 1.36 s)
+    while the firmware keeps sending: no safe voltage, no disarm, the log names the kernel;
+    only beyond host_stall_limit does it disarm, once. The same gap with nothing held is a
+    link fault at fault_after."""
+    for held in (True, False):
+        rig = Rig()
+        rig.run(0.05)
+        rig.bridge.set_grasp_force(10.0, rig.t)
+        rig.run(1.0)
+        t_last = rig.t
+        n = len(rig.writes)
+        limit = rig.bridge.params.link.host_stall_limit
+        results = []
+        t = t_last + 0.005
+        while t <= t_last + 0.5:
+            results.append(rig.bridge.check_watchdog(t, lambda: 0, lambda h=held: h))
+            t += 0.005
+        if not held:
+            assert any(r.state == LinkState.FAULT and r.disarmed for r in results)
+            assert not rig.bridge.status(rig.t).armed
+            continue
+        assert {r.state for r in results[4:]} == {LinkState.LAGGING}, results[4]
+        assert not any(r.disarmed for r in results)
+        assert 'waits in the kernel' in results[-1].reason, results[-1].reason
+        assert rig.writes[n:] == [] and rig.bridge.status(t).armed
+        while t <= t_last + limit + 0.02:
+            results.append(rig.bridge.check_watchdog(t, lambda: 0, lambda h=held: h))
+            t += 0.005
+        disarmed = [r for r in results if r.disarmed]
+        assert len(disarmed) == 1 and 'overloaded' in disarmed[0].reason, disarmed
+        assert rig.writes[n:] == [b'T0.00\n'] and not rig.bridge.status(t).armed
+
+
+def test_a_reader_seen_waiting_for_the_kernel_once_counts_for_stale_after_only() -> None:
+    """The reader alternates between the kernel's flush and its own poll while the worker is
+    starved: a sighting counts for ``link.stale_after``, after which a silent port is a
+    silent device again (the fault is only delayed by that much)."""
+    rig = Rig()
+    rig.run(0.05)
+    rig.bridge.set_grasp_force(10.0, rig.t)
+    rig.run(1.0)
+    t_last = rig.t
+    stale_after = rig.bridge.params.link.stale_after
+    fault_after = rig.bridge.params.link.fault_after
+    seen = rig.bridge.check_watchdog(t_last + 0.1, lambda: 0, lambda: True)
+    assert seen.state == LinkState.LAGGING
+    within = rig.bridge.check_watchdog(t_last + 0.1 + 0.5 * stale_after, lambda: 0,
+                                       lambda: False)
+    assert within.state == LinkState.LAGGING
+    after = rig.bridge.check_watchdog(t_last + 0.1 + 2.0 * stale_after, lambda: 0,
+                                      lambda: False)
+    assert after.state == LinkState.STALE
+    fault = rig.bridge.check_watchdog(t_last + fault_after + 0.01, lambda: 0, lambda: False)
+    assert fault.state == LinkState.FAULT and fault.disarmed
+
+
 def test_a_device_that_resumes_after_a_long_gap_is_not_taken_for_a_stalled_host() -> None:
     """The watchdog found the port empty during a gap: bytes it sees waiting when the device
     resumes arrived after that, so the host is not stalled (no disarm, no host-stall event

@@ -34,6 +34,7 @@ try:  # POSIX ports get a direct descriptor path for the 500 Hz loop (see Serial
 except ImportError:  # pragma: no cover - non-POSIX platforms use pyserial's read/write only
     _PosixSerial = None
 
+from slip_cell_common.core.tty_worker import waiting_for_tty_worker
 from slip_cell_common.core.validation import validate_fields
 
 #: A clock returning seconds (the node passes its ROS clock; tests pass a fake).
@@ -385,6 +386,7 @@ class SerialLink:
                  on_chunk: ChunkCallback | None = None) -> None:
         self.url = url
         self._on_chunk = on_chunk
+        self._reader_tid: int | None = None  # native id of the reader thread while it runs
         self._last_read = float('nan')
         self._reading = False
         self._exit_lock = threading.Lock()  # hands the close over to an exiting reader
@@ -502,6 +504,12 @@ class SerialLink:
         """The reader has taken bytes off the port and not yet recorded their lines
         (`last_read_stamp`); only on the direct POSIX path."""
         return self._reading
+
+    def kernel_holds_input(self) -> bool:
+        """The reader waits for the kernel's tty worker to hand over bytes the device has sent
+        (`slip_cell_common.core.tty_worker`): data is arriving that the process cannot see
+        yet because the host is overloaded. Thread-safe; False where it cannot be told."""
+        return waiting_for_tty_worker(self._reader_tid)
 
     def input_pending(self) -> int:
         """Bytes the port has received that the reader has not read yet (0 when closed or
@@ -698,6 +706,7 @@ class SerialLink:
         try:
             self._read_loop()
         finally:
+            self._reader_tid = None
             with self._exit_lock:
                 self._reader_running = False
                 close = self._close_on_exit
@@ -705,6 +714,7 @@ class SerialLink:
                 self._close_stream()
 
     def _read_loop(self) -> None:
+        self._reader_tid = threading.get_native_id()
         if self._thread_setup is not None:
             self._call(self._thread_setup)
         while not self._stop.is_set():

@@ -151,6 +151,8 @@ class GripperBridge:
         #: Newest watchdog time [s] at which the port was empty during a telemetry gap (NaN
         #: when none since the last line): bytes seen waiting later arrived after it.
         self._port_empty_t = _NAN
+        #: Newest watchdog time [s] at which the kernel held telemetry the device had sent.
+        self._kernel_held_t = _NAN
         #: Time of the previous watchdog check, and of the first check after the watchdog
         #: itself was late (the whole driver process did not run) [s].
         self._last_check_t = _NAN
@@ -317,13 +319,18 @@ class GripperBridge:
             self._new_session(f'link lost: {reason}')
 
     def check_watchdog(self, t: float,
-                       input_pending: Callable[[], int] | None = None) -> WatchdogResult:
+                       input_pending: Callable[[], int] | None = None,
+                       kernel_holds_input: Callable[[], bool] | None = None
+                       ) -> WatchdogResult:
         """Supervise telemetry; call from a timer (≤ 10 ms period) with the current time [s].
 
         Args:
             t: Current time on the line clock [s].
             input_pending: Bytes received at the port but not yet read by the loop (asked only
                 when no line was processed for ``link.stale_after``); None = unknown (0).
+            kernel_holds_input: The reader waits for the kernel to hand over bytes the device
+                has sent (`SerialLink.kernel_holds_input`; asked like ``input_pending``, when
+                nothing waits at the port); None = never.
 
         Writes the safe voltage once when no telemetry arrives; disarms and asks for a
         reconnection once when the link faults. Telemetry waiting at the port is a host stall
@@ -331,7 +338,10 @@ class GripperBridge:
         ``link.host_stall_limit`` while this watchdog keeps checking on time. A pause of the
         whole process (this check itself came more than ``link.stale_after`` after the
         previous one) is not held against the loop: nothing could be written meanwhile, the
-        firmware kept the last command, and the loop resumes with the lines waiting.
+        firmware kept the last command, and the loop resumes with the lines waiting. Telemetry
+        the kernel has received but not handed to the port yet (its tty worker thread waits
+        for a CPU) is a host stall in the same way: seen at this check or at one within
+        ``link.stale_after`` before it.
         """
         gap = t - self._last_check_t
         if not gap <= self._params.link.stale_after:  # NaN: the first check
@@ -356,13 +366,18 @@ class GripperBridge:
             if age <= p.stale_after:
                 return WatchdogResult(LinkState.OK, age, False, 'ok')
             pending = input_pending() if input_pending is not None else 0
-            if pending > 0 and self._session_lines > 0:
+            in_kernel = False
+            if pending <= 0 and kernel_holds_input is not None and self._session_lines > 0:
+                if kernel_holds_input():
+                    self._kernel_held_t = t
+                in_kernel = t - self._kernel_held_t <= p.stale_after  # NaN: never seen
+            if (pending > 0 or in_kernel) and self._session_lines > 0:
                 # Waiting since the port was last seen empty, at most since the last line: a
                 # device that resumes after a gap is not a host that stalled all along.
                 empty = self._port_empty_t
                 waited = age if empty != empty else max(0.0, min(age, t - empty))
                 stuck = min(waited, max(0.0, t - self._checks_resumed_t))
-                return self._host_lagging(waited, stuck, pending)
+                return self._host_lagging(waited, stuck, pending, in_kernel)
             self._port_empty_t = t
             self._lagging = False
             if age > p.fault_after:
@@ -378,8 +393,10 @@ class GripperBridge:
             return WatchdogResult(LinkState.STALE, age, False, reason,
                                   held=not self._safe())
 
-    def _host_lagging(self, age: float, stuck: float, pending: int) -> WatchdogResult:
-        """Telemetry waits at the port: the host is behind, not the device (lock held).
+    def _host_lagging(self, age: float, stuck: float, pending: int,
+                      in_kernel: bool = False) -> WatchdogResult:
+        """Telemetry waits at the port (or, ``in_kernel``, in the kernel on its way there):
+        the host is behind, not the device (lock held).
 
         ``age``: how long it waited [s]; ``stuck``: the part of it during which this
         watchdog ran on time while the loop did not [s]."""
@@ -387,16 +404,23 @@ class GripperBridge:
         if age > self._params.link.stale_after:
             self._pending_stall_s = max(self._pending_stall_s, age)
         limit = self._params.link.host_stall_limit
+        where = ('telemetry the device sent waits in the kernel (its tty worker thread has not '
+                 'run: the host is overloaded)' if in_kernel else
+                 f'{pending} bytes of telemetry wait unprocessed')
         if stuck <= limit:
             paused = '' if stuck >= age else \
                 f'; the driver process did not run for {age - stuck:.3f} s of it'
             return WatchdogResult(LinkState.LAGGING, age, False,
-                                  f'{pending} bytes of telemetry wait unprocessed for '
-                                  f'{age:.3f} s (host busy{paused}; the last command stays '
-                                  'applied)')
-        reason = (f'telemetry waited unprocessed for {age:.3f} s, {stuck:.3f} s of it while '
-                  f'the rest of the driver ran (host_stall_limit {limit:.3f} s): the loop is '
-                  'stuck')
+                                  f'{where} for {age:.3f} s (host busy{paused}; the last '
+                                  'command stays applied)')
+        if in_kernel:
+            reason = (f'telemetry the device sent waited in the kernel for {age:.3f} s (its tty '
+                      f'worker thread did not run; host_stall_limit {limit:.3f} s): the host '
+                      'is overloaded')
+        else:
+            reason = (f'telemetry waited unprocessed for {age:.3f} s, {stuck:.3f} s of it '
+                      f'while the rest of the driver ran (host_stall_limit {limit:.3f} s): the '
+                      'loop is stuck')
         disarmed = not self._stall_fault_reported
         if disarmed:
             self._stall_fault_reported = True

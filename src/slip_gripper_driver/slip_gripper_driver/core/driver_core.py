@@ -130,10 +130,12 @@ class GripperDriverCore:
     def watchdog(self, t: float) -> WatchdogResult:
         """Supervise the link at time ``t`` [s]; reconnects on a fault.
 
-        Bytes waiting at the port (`SerialLink.input_pending`) tell a host stall from a
-        silent device.
+        Bytes waiting at the port (`SerialLink.input_pending`), or held by the kernel on
+        their way there (`SerialLink.kernel_holds_input`), tell a host stall from a silent
+        device.
         """
-        result = self.bridge.check_watchdog(t, self._unprocessed)
+        result = self.bridge.check_watchdog(t, self._unprocessed,
+                                            self.link.kernel_holds_input)
         if result.state != self._last_state and result.state == LinkState.STALE:
             self._emit(t, 'stale', f'{self.port}: {result.reason}; {self._stale_text(t, result)}')
         if result.state == LinkState.FAULT and result.reconnect:
