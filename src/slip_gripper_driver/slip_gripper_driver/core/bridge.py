@@ -32,7 +32,9 @@ Fail-safe rules (issue 5 item 2, hardware_protocols §7):
   unprocessed (the host was descheduled, the firmware kept sending) is a host stall: nothing
   is written, the firmware keeps the last command, and the first line processed afterwards
   reports ``'host_stall'`` with how late it was; only a stall longer than
-  ``link.host_stall_limit`` writes the safe voltage and disarms. A stall is timed from the
+  ``link.host_stall_limit`` writes the safe voltage and disarms. Telemetry the kernel holds
+  on its way to the port (the reader waits for the kernel's tty worker thread, starved of
+  CPU) is a host stall as well, up to ``link.kernel_hold_limit``. A stall is timed from the
   last check that found the port empty (bytes seen later arrived after it), so a device that
   resumes after a gap is not taken for a host that was stalled through the whole gap. A
   read/write error or a vanished port is reported by the link at once. With a 10 ms timer,
@@ -340,8 +342,8 @@ class GripperBridge:
         previous one) is not held against the loop: nothing could be written meanwhile, the
         firmware kept the last command, and the loop resumes with the lines waiting. Telemetry
         the kernel has received but not handed to the port yet (its tty worker thread waits
-        for a CPU) is a host stall in the same way: seen at this check or at one within
-        ``link.stale_after`` before it.
+        for a CPU) is a host stall in the same way, up to ``link.kernel_hold_limit``: seen at
+        this check or at one within ``link.stale_after`` before it.
         """
         gap = t - self._last_check_t
         if not gap <= self._params.link.stale_after:  # NaN: the first check
@@ -401,9 +403,10 @@ class GripperBridge:
         ``age``: how long it waited [s]; ``stuck``: the part of it during which this
         watchdog ran on time while the loop did not [s]."""
         self._lagging = True
-        if age > self._params.link.stale_after:
+        link = self._params.link
+        if age > link.stale_after:
             self._pending_stall_s = max(self._pending_stall_s, age)
-        limit = self._params.link.host_stall_limit
+        limit = link.kernel_hold_limit if in_kernel else link.host_stall_limit
         where = ('telemetry the device sent waits in the kernel (its tty worker thread has not '
                  'run: the host is overloaded)' if in_kernel else
                  f'{pending} bytes of telemetry wait unprocessed')
@@ -415,7 +418,7 @@ class GripperBridge:
                                   'command stays applied)')
         if in_kernel:
             reason = (f'telemetry the device sent waited in the kernel for {age:.3f} s (its tty '
-                      f'worker thread did not run; host_stall_limit {limit:.3f} s): the host '
+                      f'worker thread did not run; kernel_hold_limit {limit:.3f} s): the host '
                       'is overloaded')
         else:
             reason = (f'telemetry waited unprocessed for {age:.3f} s, {stuck:.3f} s of it '

@@ -22,8 +22,9 @@ class LinkParams:
     """Telemetry supervision (parameter group ``link``).
 
     Staleness is judged from the device: a telemetry gap counts only while no bytes wait at
-    the port. Telemetry that waits unprocessed means the host is behind, not the device: the
-    last command stays applied (the firmware holds it) until ``host_stall_limit``. A gap
+    the port and the kernel holds none on their way there. Telemetry that waits unprocessed
+    means the host is behind, not the device: the last command stays applied (the firmware
+    holds it) until ``host_stall_limit`` (``kernel_hold_limit`` while the kernel holds it). A gap
     shorter than ``fault_after`` is a validity state (status ``link_ok`` false, diagnostics
     WARN); ``stale_action`` says whether it also writes the safe voltage. The safe state
     proper (safe voltage, disarm, reconnect) belongs to the link fault.
@@ -49,6 +50,12 @@ class LinkParams:
                        'kept running on time (the loop itself is stuck): safe voltage, disarm. '
                        'A pause of the whole driver process is reported, not disarmed (the '
                        'firmware kept the last command)'})
+    kernel_hold_limit: float = field(default=5.0, metadata={
+        'unit': 's', 'range': (0.02, 60.0),
+        'description': 'telemetry the device sent stayed in the kernel this long (its tty '
+                       'worker thread had not run; the reader waits for it): safe voltage, '
+                       'disarm. Shorter holds are host stalls: the firmware keeps the last '
+                       'command'})
     resume_rate: float = field(default=200.0, metadata={
         'unit': 'N/s', 'range': (1.0, 1.0e4),
         'description': 'after the loop wrote nothing for stale_after (host stall, telemetry '
@@ -63,6 +70,9 @@ class LinkParams:
                             f'{self.stale_after} s')
         if self.host_stall_limit < self.stale_after:
             problems.append(f'host_stall_limit {self.host_stall_limit} s is below stale_after '
+                            f'{self.stale_after} s')
+        if self.kernel_hold_limit < self.stale_after:
+            problems.append(f'kernel_hold_limit {self.kernel_hold_limit} s is below stale_after '
                             f'{self.stale_after} s')
         validate_fields(self, problems)
 
