@@ -620,6 +620,28 @@ def test_telemetry_the_kernel_still_holds_is_a_host_stall_not_a_link_fault() -> 
         assert rig.writes[n:] == [b'T0.00\n'] and not rig.bridge.status(t).armed
 
 
+def test_bytes_at_the_port_behind_a_reader_waiting_for_the_kernel_are_the_kernels_stall(
+        ) -> None:
+    """Some bytes reached the port, but the reader still waits in the kernel's flush (seen in
+    a 10-minute hold: 1.3 s): the kernel is the cause, so kernel_hold_limit bounds it, not
+    host_stall_limit (which stays for a reader that is free and does not read)."""
+    for held in (True, False):
+        rig = Rig()
+        rig.run(0.05)
+        rig.bridge.set_grasp_force(10.0, rig.t)
+        rig.run(1.0)
+        t_last = rig.t
+        host_limit = rig.bridge.params.link.host_stall_limit
+        results = []
+        t = t_last + 0.005
+        while t <= t_last + host_limit + 0.1:
+            results.append(rig.bridge.check_watchdog(t, lambda: 350, lambda h=held: h))
+            t += 0.005
+        assert {r.state for r in results[4:]} == {LinkState.LAGGING}
+        assert any(r.disarmed for r in results) is (not held), held
+        assert rig.bridge.status(t).armed is held
+
+
 def test_a_reader_seen_waiting_for_the_kernel_once_counts_for_stale_after_only() -> None:
     """The reader alternates between the kernel's flush and its own poll while the worker is
     starved: a sighting counts for ``link.stale_after``, after which a silent port is a

@@ -34,7 +34,7 @@ try:  # POSIX ports get a direct descriptor path for the 500 Hz loop (see Serial
 except ImportError:  # pragma: no cover - non-POSIX platforms use pyserial's read/write only
     _PosixSerial = None
 
-from slip_cell_common.core.tty_worker import waiting_for_tty_worker
+from slip_cell_common.core.tty_worker import wait_channel, waiting_for_tty_worker
 from slip_cell_common.core.validation import validate_fields
 
 #: A clock returning seconds (the node passes its ROS clock; tests pass a fake).
@@ -510,6 +510,11 @@ class SerialLink:
         (`slip_cell_common.core.tty_worker`): data is arriving that the process cannot see
         yet because the host is overloaded. Thread-safe; False where it cannot be told."""
         return waiting_for_tty_worker(self._reader_tid)
+
+    def reader_wait_channel(self) -> str:
+        """Where in the kernel the reader thread sleeps ('' while it runs or where it cannot
+        be told); for log messages."""
+        return wait_channel(self._reader_tid)
 
     def input_pending(self) -> int:
         """Bytes the port has received that the reader has not read yet (0 when closed or

@@ -19,15 +19,21 @@ from __future__ import annotations
 FLUSH_WAIT_CHANNELS = frozenset({'__flush_work', 'flush_work', '__flush_work.isra.0'})
 
 
-def waiting_for_tty_worker(native_thread_id: int | None) -> bool:
-    """True while the thread (``threading.get_native_id()`` of a thread of this process)
-    waits for the kernel to flush pending received bytes; False when it does not, is gone,
+def wait_channel(native_thread_id: int | None) -> str:
+    """The kernel function the thread (of this process) sleeps in, '' when it runs, is gone
     or the platform cannot tell."""
     if native_thread_id is None:
-        return False
+        return ''
     try:
         with open(f'/proc/self/task/{native_thread_id}/wchan') as wchan:
             channel = wchan.read().strip()
     except OSError:
-        return False
-    return channel in FLUSH_WAIT_CHANNELS
+        return ''
+    return '' if channel == '0' else channel
+
+
+def waiting_for_tty_worker(native_thread_id: int | None) -> bool:
+    """True while the thread (``threading.get_native_id()`` of a thread of this process)
+    waits for the kernel to flush pending received bytes; False when it does not, is gone,
+    or the platform cannot tell."""
+    return wait_channel(native_thread_id) in FLUSH_WAIT_CHANNELS

@@ -331,8 +331,9 @@ class GripperBridge:
             input_pending: Bytes received at the port but not yet read by the loop (asked only
                 when no line was processed for ``link.stale_after``); None = unknown (0).
             kernel_holds_input: The reader waits for the kernel to hand over bytes the device
-                has sent (`SerialLink.kernel_holds_input`; asked like ``input_pending``, when
-                nothing waits at the port); None = never.
+                has sent (`SerialLink.kernel_holds_input`; asked like ``input_pending``); then
+                the stall is the kernel's, bounded by ``link.kernel_hold_limit``, even with
+                bytes at the port; None = never.
 
         Writes the safe voltage once when no telemetry arrives; disarms and asks for a
         reconnection once when the link faults. Telemetry waiting at the port is a host stall
@@ -369,7 +370,7 @@ class GripperBridge:
                 return WatchdogResult(LinkState.OK, age, False, 'ok')
             pending = input_pending() if input_pending is not None else 0
             in_kernel = False
-            if pending <= 0 and kernel_holds_input is not None and self._session_lines > 0:
+            if kernel_holds_input is not None and self._session_lines > 0:
                 if kernel_holds_input():
                     self._kernel_held_t = t
                 in_kernel = t - self._kernel_held_t <= p.stale_after  # NaN: never seen

@@ -142,8 +142,10 @@ class GripperDriverCore:
             self._emit(t, 'fault', f'{self.port}: {result.reason}; link fault: safe voltage '
                        'written, disarmed (gripper/arm required), reconnecting')
         if result.state == LinkState.LAGGING and result.disarmed:
-            self._emit(t, 'host_stall_fault', f'{self.port}: {result.reason}; safe voltage '
-                       'written, disarmed (gripper/arm required)')
+            where = self.link.reader_wait_channel() or 'running'
+            self._emit(t, 'host_stall_fault', f'{self.port}: {result.reason} (reader thread in '
+                       f'the kernel: {where}); safe voltage written, disarmed (gripper/arm '
+                       'required)')
         self._last_state = result.state
         if result.reconnect:
             self.link.request_reconnect(result.reason)
