@@ -602,14 +602,14 @@ def _print_emulator_gaps(gaps: list[dict[str, float]], wall0: float) -> None:
     print('    longest emulator gaps (s into the hold (negative: before it); ms: gap, thread CPU '
           'meanwhile; preemptions/blocks; ms waiting for a CPU (nan: sysctl '
           'kernel.task_delayacct=0); major page faults; ms: sleep overslept, read, tick, '
-          'write):')
+          'write, own counter reads):')
     for g in gaps[:5]:
         print(f'      {g["at_s"] - wall0:8.1f} s  {1e3 * g["gap_s"]:7.1f}  cpu '
               f'{1e3 * g["cpu_s"]:6.1f}  switches {g["involuntary_switches"]:3d}/'
               f'{g["voluntary_switches"]:<4d}  runq {1e3 * g["runqueue_wait_s"]:7.1f}  '
               f'majflt {g["major_faults"]:3d}  overslept {1e3 * g["overslept_s"]:7.1f}  read '
               f'{1e3 * g["read_s"]:6.1f}  tick {1e3 * g["tick_s"]:6.1f}  write '
-              f'{1e3 * g["write_s"]:6.1f}')
+              f'{1e3 * g["write_s"]:6.1f}  clock {1e3 * g["clock_s"]:6.1f}')
 
 
 def _print_worst_truth(truth: np.ndarray, target_n: float, line_t: np.ndarray,

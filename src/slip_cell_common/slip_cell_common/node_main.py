@@ -21,6 +21,8 @@ from rclpy.lifecycle import LifecycleNode, TransitionCallbackReturn
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 
+from slip_cell_common.executor_turn import spin_once_outliving_destruction
+
 
 class _StopFlag:
     """Set by the SIGINT/SIGTERM handlers; checked by the spin loop."""
@@ -90,7 +92,7 @@ def run_nodes(factories: Sequence[Callable[[], Node]], args: list[str] | None = 
         # spin_once with a timeout instead of spin(): a graph without timers would otherwise
         # block inside rcl_wait forever and Python could never run our signal handlers.
         while executor.context.ok() and not stop.signal_name:
-            executor.spin_once(timeout_sec=0.1)
+            spin_once_outliving_destruction(executor, 0.1)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except Exception as exc:

@@ -15,6 +15,7 @@ from typing import Any
 from collections.abc import Callable, Sequence
 
 from slip_cell_common.calls import call_service, spin_until  # noqa: F401 (re-export)
+from slip_cell_common.executor_turn import spin_once_outliving_destruction
 
 
 class SpinThread:
@@ -36,6 +37,9 @@ class SpinThread:
         self._slice_s = slice_s
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name='spin', daemon=True)
+        #: Turns lost to an entity destroyed while the executor collected them (see
+        #: `slip_cell_common.executor_turn`).
+        self.lost_turns = 0
 
     def start(self) -> SpinThread:
         """Start spinning; returns self."""
@@ -46,7 +50,13 @@ class SpinThread:
         if self._on_start is not None:
             self._on_start()
         while not self._stop.is_set():
-            self.executor.spin_once(timeout_sec=self._slice_s)
+            if not spin_once_outliving_destruction(self.executor, self._slice_s):
+                self.lost_turns += 1
+
+    @property
+    def alive(self) -> bool:
+        """The thread still spins (an error raised by a turn ends it)."""
+        return self._thread.is_alive()
 
     def stop(self, timeout_s: float = 2.0) -> None:
         """Stop spinning and join the thread (bounded by ``timeout_s``)."""

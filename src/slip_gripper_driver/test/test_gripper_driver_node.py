@@ -9,6 +9,7 @@ services. Every wait is bounded; assertions are on physical outcomes with tolera
 """
 from __future__ import annotations
 
+from collections import deque
 import math
 import sys
 import time
@@ -164,6 +165,16 @@ class Rig:
     def status(self) -> Any:
         return self.node.core.bridge.status(self.node.now())
 
+    @property
+    def spinning(self) -> bool:
+        """The driver's executor thread still spins."""
+        return self._spinner.alive
+
+    @property
+    def lost_turns(self) -> int:
+        """Executor turns lost to entities destroyed meanwhile."""
+        return self._spinner.lost_turns
+
     def start(self) -> None:
         from rclpy.lifecycle import TransitionCallbackReturn
         assert self.node.trigger_configure() == TransitionCallbackReturn.SUCCESS, \
@@ -172,11 +183,13 @@ class Rig:
             self.node.last_error
 
     def close(self) -> None:
+        """Stop as ``main`` does: spinning ends first, then the node's shutdown transition (it
+        destroys entities a spinning wait set could still be adding)."""
         from slip_cell_common.node_main import shutdown_lifecycle
+        self._spinner.stop()
         try:
             shutdown_lifecycle(self.node)
         finally:
-            self._spinner.stop()
             self.executor.shutdown()
             self.probe_exec.shutdown()
             self.node.destroy_node()
@@ -184,7 +197,26 @@ class Rig:
 
 
 @pytest.fixture
-def rig_factory(ros_context: Any) -> Iterator[Callable[..., Rig]]:
+def driver_switch_interval() -> Iterator[None]:
+    """The GIL switch interval ``main`` sets for the driver process, restored afterwards.
+
+    These tests crowd the driver, the firmware and two box emulators (and in one test three
+    driver nodes) into one process. At Python's default 5 ms interval a thread that wants the
+    GIL waits up to 5 ms per switch among ~10 busy threads: the box emulators then sent < 250
+    of 500 records per second, and the firmware emulator's thread waited ~0.1 s at a time
+    (≈ 27 switches), running those ticks open loop: a 10 N grasp then rang between 8 and
+    13 N on a slow 2-core host.
+    """
+    from slip_gripper_driver.gripper_driver_node import SWITCH_INTERVAL_S
+    previous = sys.getswitchinterval()
+    sys.setswitchinterval(SWITCH_INTERVAL_S)
+    yield
+    sys.setswitchinterval(previous)
+
+
+@pytest.fixture
+def rig_factory(ros_context: Any, driver_switch_interval: None) -> Iterator[Callable[..., Rig]]:
+    """Driver rigs run as ``main`` runs the node (its GIL switch interval); closed at the end."""
     rigs: list[Rig] = []
 
     def make(overrides: dict[str, Any]) -> Rig:
@@ -277,7 +309,9 @@ def test_bias_then_grasp_force_converges_stale_command_policy_and_stop(
     from geometry_msgs.msg import WrenchStamped
     from rclpy.parameter import Parameter
     from slip_msgs.msg import GripperStatus, MotorCommand
-    rig = rig_factory(cell.overrides())
+    # Wrenches published at 100 Hz, not 500: the probe then takes less of this one process's
+    # GIL, which the loop, its F/T readers and the emulated devices share.
+    rig = rig_factory(cell.overrides(**{'ft.publish_decimation': 5}))
     wrench_1 = rig.subscribe(WrenchStamped, 'finger_1/ft/wrench')
     wrench_2 = rig.subscribe(WrenchStamped, 'finger_2/ft/wrench')
     statuses = rig.subscribe(GripperStatus, 'gripper/status')
@@ -289,16 +323,19 @@ def test_bias_then_grasp_force_converges_stale_command_policy_and_stop(
     reply = rig.call('gripper/bias_ft')
     assert reply is not None and reply.success, reply
     assert '127.0.0.6' in reply.message and '127.0.0.5' in reply.message
-    assert rig.spin_until(lambda: len(wrench_1) > 200 and len(wrench_2) > 200)
+    assert rig.spin_until(lambda: len(wrench_1) > 100 and len(wrench_2) > 100)
     assert wrench_1[-1].header.frame_id == 'ft_sensor_1'
     assert wrench_2[-1].header.frame_id == 'ft_sensor_2'
     # offsets (1.5 N and −0.7 N) removed: the empty gripper reads ≈ 0
-    assert abs(sum(w.wrench.force.z for w in wrench_1[-100:]) / 100) < 0.1
-    assert abs(sum(w.wrench.force.z for w in wrench_2[-100:]) / 100) < 0.1
+    assert abs(sum(w.wrench.force.z for w in wrench_1[-50:]) / 50) < 0.1
+    assert abs(sum(w.wrench.force.z for w in wrench_2[-50:]) / 50) < 0.1
     stamps_1 = [stamp(w) for w in wrench_1]
     assert all(b >= a for a, b in zip(stamps_1, stamps_1[1:]))  # datagram arrival stamps
     assert rig.spin_until(lambda: statuses[-1].ft_biased)
 
+    # Pad force of the last 0.3 s of plant ticks [N] (the emulator's own record, in its time).
+    pad_forces: deque[float] = deque(maxlen=150)
+    cell.firmware.on_tick = lambda _t, force, _v: pad_forces.append(force)
     rig.command(10.0)
 
     def settled() -> bool:
@@ -307,8 +344,12 @@ def test_bias_then_grasp_force_converges_stale_command_policy_and_stop(
             s.in_contact and abs(s.measured_grasp_force - 10.0) < 0.3 for s in recent)
     assert rig.spin_until(settled), statuses[-1]
     assert motor[-1].closed_loop
-    # the measurement is the emulated pad force: the loop really closes on the plant
-    assert cell.firmware.grasp_force() == pytest.approx(10.0, abs=0.5)
+    # The measurement is the emulated pad force: the loop really closes on the plant (the
+    # plant's own record over its last 0.3 s, not one sample read at some instant).
+    with cell.firmware.lock:
+        median_pad_force = float(np.median(pad_forces))
+        cell.firmware.on_tick = None
+    assert median_pad_force == pytest.approx(10.0, abs=0.5)
     m = motor[-1]
     assert m.force_target == pytest.approx(10.0) and m.bypass_reason == MotorCommand.BYPASS_NONE
     # A bias now would absorb the 10 N (issue 16): refused, nothing re-biased.
@@ -613,22 +654,6 @@ def test_home_service_then_joint_states_and_finger_frames(empty_cell: Cell,
         opening / 2.0 + 0.0078, abs=0.002)
 
 
-@pytest.fixture
-def driver_switch_interval() -> Iterator[None]:
-    """The GIL switch interval ``main`` sets for the driver process, restored afterwards.
-
-    This test crowds three driver nodes, the firmware and two box emulators into one process.
-    At Python's default 5 ms interval a thread that wants the GIL waits up to 5 ms per switch
-    among ~10 busy threads: the box emulators then sent < 250 of 500 records per second and
-    the bias windows came up short (the known gap this test used to be marked with).
-    """
-    from slip_gripper_driver.gripper_driver_node import SWITCH_INTERVAL_S
-    previous = sys.getswitchinterval()
-    sys.setswitchinterval(SWITCH_INTERVAL_S)
-    yield
-    sys.setswitchinterval(previous)
-
-
 def test_topic_mode_consumes_standalone_netft_drivers_and_biases_through_them(
         cell: Cell, ros_context, driver_switch_interval: None) -> None:
     """ft.mode 'topic': two netft_driver nodes own the boxes; gripper/bias_ft calls theirs."""
@@ -734,4 +759,7 @@ def test_fifty_start_stop_cycles_release_every_thread_descriptor_and_the_gc_free
         assert gc.get_freeze_count() == 0, cycle
         assert ours() == threads_before, (cycle, ours())
         assert cell.last_command() == b'T0.00', cycle
+    # Cleanup destroyed the node's entities while the executor thread collected them: those
+    # turns are lost, the thread spins on (it used to die of InvalidHandle / RCLError).
+    assert rig.spinning, rig.lost_turns
     assert fds() <= fds_before + 2  # nothing leaks (a little slack for rclpy internals)

@@ -357,5 +357,8 @@ def test_a_link_gap_is_logged_with_where_the_emulator_thread_was(tmp_path: Path)
     gap = emu.gap_log[0]
     assert gap.gap_s == pytest.approx(emu.max_send_gap_s)
     assert gap.cpu_s < 0.5 * gap.gap_s, gap          # not computing: waiting
-    assert gap.overslept_s > 0.5 * gap.gap_s, gap    # the wait ended the select late
     assert gap.voluntary_switches >= 1, gap
+    # The record accounts for the time: the GIL wait ends in whichever call released the GIL
+    # (the sleep until a tick, the pty write, a /proc read of the record itself).
+    accounted = gap.overslept_s + gap.read_s + gap.tick_s + gap.write_s + gap.clock_s
+    assert accounted > 0.8 * gap.gap_s, gap

@@ -94,8 +94,8 @@ def test_raw_then_bias_service_then_biased_wrench_diagnostics_and_stop_on_shutdo
         assert reply is not None and reply.success, reply
         assert box.biases == 1
     finally:
+        spinner.stop()  # no wait set may hold entities that the shutdown destroys
         shutdown_lifecycle(node)
-        spinner.stop()
         executor.shutdown()
         probe_exec.shutdown()
         node.destroy_node()
@@ -213,8 +213,8 @@ def test_error_records_and_a_reboot_in_device_bias_mode_never_reach_the_wrench_t
         assert sum(w.wrench.force.z for w in recent) / 50 == pytest.approx(0.0, abs=0.05)
         assert not node.channel.bias_lost
     finally:
+        spinner.stop()  # no wait set may hold entities that the shutdown destroys
         shutdown_lifecycle(node)
-        spinner.stop()
         executor.shutdown()
         probe_exec.shutdown()
         node.destroy_node()
@@ -301,8 +301,8 @@ def test_bias_service_refuses_while_the_box_or_the_gripper_status_says_the_pads_
         assert allowed.success, allowed.message
         assert 'no recent gripper status' not in allowed.message
     finally:
+        spinner.stop()  # no wait set may hold entities that the shutdown destroys
         shutdown_lifecycle(node)
-        spinner.stop()
         executor.shutdown()
         probe_exec.shutdown()
         node.destroy_node()

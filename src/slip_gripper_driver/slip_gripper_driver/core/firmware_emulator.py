@@ -433,7 +433,13 @@ class SendGap:
         overslept_s: How much longer the sleeps until a tick took than asked [s] (late
             wake-ups).
         read_s, tick_s, write_s: Time in reading + parsing host bytes, in the plant ticks
-            (lock included) and in the pty write [s].
+            (lock included) and in the pty write of the send that opened the gap [s].
+        clock_s: Time in this record's own counter reads [s] (a ``/proc`` read releases
+            the GIL, so a wait for it can end there).
+
+    A wait for the GIL ends in whichever call released it, so it shows as ``overslept_s``,
+    ``write_s`` or ``clock_s``; with ``cpu_s`` near 0 the parts add up to about ``gap_s``
+    less the asked sleep.
     """
 
     at_s: float
@@ -447,6 +453,7 @@ class SendGap:
     read_s: float
     tick_s: float
     write_s: float
+    clock_s: float
 
 
 class _GapClock:
@@ -458,22 +465,26 @@ class _GapClock:
         self.restart()
 
     def restart(self) -> None:
-        self._parts = {'sleep': 0.0, 'read': 0.0, 'tick': 0.0, 'write': 0.0}
+        """Open a new gap (call it at the send that closes the last one)."""
+        t0 = time.monotonic()
+        self._parts = {'sleep': 0.0, 'read': 0.0, 'tick': 0.0, 'write': 0.0, 'clock': 0.0}
         self._cpu0 = time.thread_time()
         self._switches0 = _context_switches()
         self._wait0, self._faults0 = self._task.read()
+        self.add('clock', time.monotonic() - t0)
 
     def add(self, part: str, seconds: float) -> None:
         self._parts[part] += max(0.0, seconds)
 
     def gap(self, now: float, gap_s: float) -> SendGap:
+        """The record of the gap that ends at ``now`` (monotonic [s]), ``gap_s`` long."""
         p = self._parts
         involuntary, voluntary = _context_switches()
         wait, faults = self._task.read()
         return SendGap(now, gap_s, time.thread_time() - self._cpu0,
                        involuntary - self._switches0[0], voluntary - self._switches0[1],
                        wait - self._wait0, faults - self._faults0 if faults >= 0 else -1,
-                       p['sleep'], p['read'], p['tick'], p['write'])
+                       p['sleep'], p['read'], p['tick'], p['write'], p['clock'])
 
     def close(self) -> None:
         self._task.close()
@@ -721,10 +732,10 @@ class PtyFirmwareEmulator:
                     self.long_gaps += 1
                     self._log_gap(since_send.gap(now, gap))
             last_send = now
+            since_send.restart()  # the next gap starts at `now`: this write is part of it
             t_write = time.monotonic()
             self._send(master, b''.join(chunks))
             since_send.add('write', time.monotonic() - t_write)
-            since_send.restart()
         since_send.close()
 
     def _log_gap(self, gap: SendGap) -> None:
