@@ -6,11 +6,8 @@ from __future__ import annotations
 import os
 import threading
 import time
-import tty
 from pathlib import Path
-from collections.abc import Callable, Iterator
-
-import pytest
+from collections.abc import Callable
 
 from slip_cell_common.core.serial_transport import (LineReader, ReconnectParams, SerialLink,
                                                 open_stream)
@@ -23,16 +20,6 @@ def _wait(predicate: Callable[[], bool], timeout_s: float = 5.0) -> bool:
             return True
         time.sleep(0.002)
     return predicate()
-
-
-@pytest.fixture
-def pty() -> Iterator[tuple[int, str]]:
-    """A raw pseudo-terminal: (master fd, slave path)."""
-    master, slave = os.openpty()
-    tty.setraw(slave)
-    yield master, os.ttyname(slave)
-    os.close(master)
-    os.close(slave)
 
 
 def test_close_never_closes_the_port_under_a_reader_that_still_runs(pty) -> None:

@@ -10,8 +10,6 @@ import subprocess
 import sys
 import threading
 import time
-import tty
-from collections.abc import Iterator
 
 import pytest
 
@@ -35,15 +33,6 @@ def _can_use_fifo() -> bool:
     except (OSError, AttributeError):
         return False
     return True
-
-
-@pytest.fixture
-def pty() -> Iterator[tuple[int, str]]:
-    master, slave = os.openpty()
-    tty.setraw(slave)
-    yield master, os.ttyname(slave)
-    os.close(master)
-    os.close(slave)
 
 
 def test_no_thread_or_a_gone_thread_is_not_waiting() -> None:

@@ -65,15 +65,10 @@ class LinkParams:
     def validate(self) -> None:
         """Raise `ParameterError` listing every invalid field."""
         problems = []
-        if self.fault_after < self.stale_after:
-            problems.append(f'fault_after {self.fault_after} s is below stale_after '
-                            f'{self.stale_after} s')
-        if self.host_stall_limit < self.stale_after:
-            problems.append(f'host_stall_limit {self.host_stall_limit} s is below stale_after '
-                            f'{self.stale_after} s')
-        if self.kernel_hold_limit < self.stale_after:
-            problems.append(f'kernel_hold_limit {self.kernel_hold_limit} s is below stale_after '
-                            f'{self.stale_after} s')
+        for name in ('fault_after', 'host_stall_limit', 'kernel_hold_limit'):
+            limit = getattr(self, name)
+            if limit < self.stale_after:  # every bound follows the first missed deadline
+                problems.append(f'{name} {limit} s is below stale_after {self.stale_after} s')
         validate_fields(self, problems)
 
 
